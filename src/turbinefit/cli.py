@@ -1,0 +1,262 @@
+"""The ``turbinefit`` command line: a thin layer over :mod:`turbinefit.pipeline`.
+
+Every command prints one clear line and exits with status 2 on bad input (no traceback);
+heavy modules are imported only by the command that needs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+EXIT_BAD_INPUT = 2
+
+_EPILOG = """\
+Flight folder (input of fit, output of simulate):
+  camera.yaml                 ROS/OpenCV camera_info (image size, camera_matrix, plumb_bob)
+  keyframes.txt               TUM 'timestamp tx ty tz qx qy qz qw', initial world_T_cam
+  odometry.txt                optional TUM; its consecutive relative poses are the
+                              pairwise measurements (default: those of keyframes.txt)
+  turbine.yaml                initial turbine parameters (metres, radians)
+  heatmaps/<t %.6f>.npy       float32 (7, H, W): point_base, point_tower_top, point_hub,
+                              point_blade_tip, line_tower, line_nacelle, line_blade
+  groundtruth.txt, turbine_groundtruth.yaml   optional ground truth
+"""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
+
+
+def _float(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="turbinefit",
+        description="Simultaneous drone localisation and wind-turbine model fitting from CNN "
+        "heat-maps (Moolan-Feroze et al., IROS 2019).",
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=_version())
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    # ---- simulate ---------------------------------------------------------------
+    s = sub.add_parser(
+        "simulate", help="write a simulated flight folder with ground truth",
+        description="Simulate an inspection flight around a realistic turbine: ground-truth "
+        "poses and turbine, heat-maps as a CNN would give them, drifting GPS/IMU poses and a "
+        "noisy initial turbine. Writes a flight folder (see `turbinefit --help`).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    s.add_argument("out_dir", metavar="OUT_DIR", type=Path, help="flight folder to create")
+    s.add_argument("--keyframes", type=_positive_int, default=200, help="number of keyframes")
+    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same flight)")
+    s.add_argument("--preset", default="default",
+                   help="simulation preset (see --list-presets)")
+    s.add_argument("--turbine", default=None,
+                   help="turbine preset name, or 'random' (default: the preset's)")
+    s.add_argument("--width", type=_positive_int, default=None, help="heat-map width [px]")
+    s.add_argument("--height", type=_positive_int, default=None, help="heat-map height [px]")
+    s.add_argument("--drift-m", type=_float, default=None,
+                   help="order of the GPS/IMU position drift over the flight [m]")
+    s.add_argument("--drift-deg", type=_float, default=None,
+                   help="order of the GPS/IMU orientation drift over the flight [deg]")
+    s.add_argument("--turbine-noise", type=_float, default=None,
+                   help="scale of the initial turbine's noise (1 = the default sigmas "
+                   "1 m, 1 m, 2 m, 5 deg, 0.5 m, 5 deg, 2 m; 0 = exact)")
+    s.add_argument("--heatmap-noise", type=_float, default=None,
+                   help="std. dev. of additive pixel noise on the heat-maps")
+    s.add_argument("--second-turbine", action="store_true",
+                   help="add a second turbine in view (false responses)")
+    s.add_argument("--list-presets", action="store_true", help="list presets and exit")
+    s.add_argument("--overwrite", action="store_true", help="replace OUT_DIR if it exists")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    # ---- fit --------------------------------------------------------------------
+    f = sub.add_parser(
+        "fit", help="optimise poses and turbine of a flight folder",
+        description="Refine every keyframe pose and the 7 turbine parameters with "
+        "Levenberg-Marquardt on the heat-maps and the GPS/IMU relative poses. Writes "
+        "OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs, iterations, "
+        "timings, and errors before/after when ground truth exists), config.yaml (the "
+        "resolved options) and plots.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
+    f.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
+                   help="output folder (created atomically)")
+    f.add_argument("--config", type=Path, default=None,
+                   help="YAML file of fit options (e.g. a previous run's config.yaml); "
+                   "command-line options override it")
+    f.add_argument("--preset", default=None,
+                   help="named configuration: paper-best, all-interp, all-corr, paper-worst, "
+                   "pose-only, turbine-only")
+    f.add_argument("--mode", choices=["joint", "pose", "turbine"], default=None,
+                   help="what to optimise [joint]")
+    f.add_argument("--points", choices=["interp", "corr", "none"], default=None,
+                   help="unary cost of the 6 model points [corr]")
+    f.add_argument("--lines", choices=["interp", "corr", "none"], default=None,
+                   help="unary cost of the line samples [interp]")
+    f.add_argument("--samples-per-line", type=_positive_int, default=None,
+                   help="samples on each model line [10]")
+    f.add_argument("--lambda-points", type=_float, default=None, help="weight of E_P [1]")
+    f.add_argument("--lambda-lines", type=_float, default=None, help="weight of E_L [1]")
+    f.add_argument("--lambda-pair", type=_float, default=None, help="weight of E_pair [1]")
+    f.add_argument("--pixel-sigma", type=_float, default=None,
+                   help="correspondence noise [px] [2]")
+    f.add_argument("--pair-sigma-t", type=_float, default=None,
+                   help="relative-pose translation std. dev. [m] [0.1]")
+    f.add_argument("--pair-sigma-r", dest="pair_sigma_r_deg", type=_float, default=None,
+                   help="relative-pose rotation std. dev. [deg] [0.1]")
+    f.add_argument("--robust", choices=["none", "huber", "cauchy"], default=None,
+                   help="robust loss on the image terms [none]")
+    f.add_argument("--robust-scale", type=_float, default=None,
+                   help="robust loss scale (whitened units) [2]")
+    f.add_argument("--gauge", choices=["first", "gps"], default=None,
+                   help="hold the first pose, or weak absolute GPS priors [first]")
+    f.add_argument("--gps-sigma", type=_float, default=None,
+                   help="std. dev. of the GPS priors [m] [3]")
+    f.add_argument("--max-iterations", type=_positive_int, default=None,
+                   help="LM iterations per correspondence round [30]")
+    f.add_argument("--no-plots", action="store_true", help="skip the figures")
+    f.add_argument("--overwrite", action="store_true", help="replace OUT_DIR if it exists")
+    f.add_argument("--quiet", action="store_true", help="no progress output")
+    return p
+
+
+def _version() -> str:
+    from turbinefit import __version__
+
+    return f"turbinefit {__version__}"
+
+
+_FIT_OPTIONS = ("mode", "points", "lines", "samples_per_line", "lambda_points", "lambda_lines",
+                "lambda_pair", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "robust",
+                "robust_scale", "gauge", "gps_sigma", "max_iterations")
+
+
+def _resolve_fit_config(args: argparse.Namespace) -> Any:
+    import dataclasses
+
+    from turbinefit.errors import InputError
+    from turbinefit.pipeline import load_fit_config
+    from turbinefit.solver.config import PRESETS, FitConfig
+
+    cfg = FitConfig()
+    if args.config is not None:
+        cfg = load_fit_config(args.config)
+    if args.preset is not None:
+        if args.preset not in PRESETS:
+            raise InputError(f"unknown preset {args.preset!r} (choose from "
+                             f"{', '.join(PRESETS)})", field="--preset")
+        cfg = PRESETS[args.preset]
+    overrides = {k: getattr(args, k) for k in _FIT_OPTIONS if getattr(args, k) is not None}
+    try:
+        return dataclasses.replace(cfg, **overrides)
+    except ValueError as exc:
+        raise InputError(str(exc), field="fit options") from None
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from turbinefit.pipeline import fit_folder
+
+    cfg = _resolve_fit_config(args)
+    bar = None
+    progress = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(desc="fit", unit="it", file=sys.stderr, dynamic_ncols=True, leave=False)
+
+        def progress(rec: Any) -> None:
+            assert bar is not None
+            bar.update(1)
+            bar.set_postfix_str(f"round {rec.round} cost {rec.cost:.6g}")
+
+    try:
+        report = fit_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
+                            overwrite=args.overwrite, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    if not args.quiet:
+        _print_fit_summary(report)
+    return 0
+
+
+def _print_fit_summary(report: Any) -> None:
+    r = report.result
+    t = report.timings
+    print(f"fitted {len(r.world_T_cam)} keyframes in {t['solve']:.2f} s "
+          f"(load {t['load']:.2f} s, total {t['total']:.2f} s): {r.iterations} iterations, "
+          f"{r.rounds} round(s), {r.termination}")
+    print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
+    th = r.turbine
+    print(f"turbine: base ({th.base_x:.2f}, {th.base_y:.2f}) m, tower {th.tower_height:.2f} m, "
+          f"heading {_deg(th.heading):.2f} deg, nacelle {th.nacelle_length:.2f} m, "
+          f"blade rotation {_deg(th.blade_rotation):.2f} deg, blades {th.blade_length:.2f} m")
+    if report.before is not None and report.after is not None:
+        b, a = report.before, report.after
+        print(f"position error     {b.position_error_m:8.3f} m   -> {a.position_error_m:8.3f} m")
+        print(f"orientation error  {b.orientation_error_deg:8.3f} deg -> "
+              f"{a.orientation_error_deg:8.3f} deg")
+        print(f"model point error  {b.model_point_error_m:8.3f} m   -> "
+              f"{a.model_point_error_m:8.3f} m")
+    print(f"wrote {report.out_dir}")
+
+
+def _deg(x: float) -> float:
+    import math
+
+    return math.degrees(x)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from turbinefit.pipeline_sim import sim_config_from_args, sim_presets_text, simulate_folder
+
+    if args.list_presets:
+        print(sim_presets_text())
+        return 0
+    cfg = sim_config_from_args(args)
+    out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet)
+    if not args.quiet:
+        print(f"wrote {cfg.n_keyframes} keyframes to {out}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``turbinefit`` command."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from turbinefit.errors import TurbinefitError
+
+    try:
+        if args.command == "fit":
+            return _cmd_fit(args)
+        if args.command == "simulate":
+            return _cmd_simulate(args)
+    except TurbinefitError as exc:
+        print(f"turbinefit: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("turbinefit: interrupted", file=sys.stderr)
+        return 130
+    parser.error(f"unknown command {args.command}")
+    return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,82 @@
+"""Projection of the turbine model into every keyframe, with Jacobians w.r.t. the
+keyframe's local pose update and the turbine parameters.
+
+For a keyframe ``world_T_cam = (R, t)`` and a world point ``world_p(theta)``::
+
+    cam_p = R^T (world_p - t),    uv = project(cam_p)
+
+With the local update of :meth:`turbinefit.geometry.se3.SE3.retract`
+(``t + dt``, ``R Exp(dphi)``) the derivatives are::
+
+    d cam_p / d dt    = -R^T
+    d cam_p / d dphi  = [cam_p]x
+    d cam_p / d theta = R^T d world_p / d theta
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class Projection:
+    """Model points projected into N keyframes.
+
+    Attributes:
+        uv: (N, M, 2) pixels.
+        front: (N, M) in front of the camera and inside the trusted distortion range.
+        inside: (N, M) front and inside the image.
+        J: (N, M, 2, 13) d uv / d (dt [m], dphi [rad], theta), or None.
+        tangent: (N, M, 2) image direction of ``world_dir`` at each point (unit, px), or
+            None if no directions were given.
+    """
+
+    uv: FloatArray
+    front: NDArray[np.bool_]
+    inside: NDArray[np.bool_]
+    J: FloatArray | None
+    tangent: FloatArray | None = None
+
+
+def project_points(
+    camera: PinholeCamera,
+    world_T_cam: SE3,
+    world_p: FloatArray,
+    J_theta: FloatArray | None,
+    with_jacobian: bool = True,
+    world_dir: FloatArray | None = None,
+) -> Projection:
+    """Project world points (M, 3) (Jacobian (M, 3, 7)) into every keyframe of ``world_T_cam``.
+
+    If ``world_dir`` (M, 3) is given (and ``with_jacobian``), also returns the unit image
+    tangent of each point's direction (e.g. the model line it samples)."""
+    R = world_T_cam.rotation_matrix()  # (N, 3, 3)
+    t = world_T_cam.translation  # (N, 3)
+    cam_p = (world_p[None, :, :] - t[:, None, :]) @ R  # row-vector form of R^T (p - t)
+    uv, front, Juv = camera.project_unbounded(cam_p, with_jacobian=with_jacobian)
+    inside = front & camera.in_image(uv)
+    J = None
+    tangent = None
+    if with_jacobian and Juv is not None:
+        N, M = uv.shape[:2]
+        J = np.empty((N, M, 2, 13))
+        A = Juv @ np.swapaxes(R, -1, -2)[:, None]  # (N, M, 2, 3) = Juv R^T
+        J[..., 0:3] = -A
+        J[..., 3:6] = np.cross(Juv, cam_p[:, :, None, :])
+        if J_theta is not None:
+            J[..., 6:13] = A @ J_theta[None]
+        else:
+            J[..., 6:13] = 0.0
+        if world_dir is not None:
+            tg = np.einsum("nmij,mj->nmi", A, world_dir)
+            norm = np.linalg.norm(tg, axis=-1, keepdims=True)
+            tangent = np.where(norm > 1e-12, tg / np.maximum(norm, 1e-300), [1.0, 0.0])
+    return Projection(uv=uv, front=front, inside=inside, J=J, tangent=tangent)

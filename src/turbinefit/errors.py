@@ -1,0 +1,32 @@
+"""The package's exceptions: one base class, caught in one place by the CLI."""
+
+from __future__ import annotations
+
+
+class TurbinefitError(Exception):
+    """Base class of every error turbinefit raises on purpose."""
+
+
+class InputError(TurbinefitError):
+    """Bad input: a missing or malformed file, or a value out of range.
+
+    The message is one line naming the file (and line or field where known) and the
+    problem, e.g. ``keyframes.txt:12: quaternion has zero norm``.
+    """
+
+    def __init__(self, message: str, path: object | None = None, line: int | None = None,
+                 field: str | None = None) -> None:
+        where = ""
+        if path is not None:
+            where = str(path)
+            if line is not None:
+                where += f":{line}"
+            if field is not None:
+                where += f" [{field}]"
+            where += ": "
+        elif field is not None:
+            where = f"{field}: "
+        super().__init__(where + message)
+        self.path = path
+        self.line = line
+        self.field = field

@@ -1,0 +1,4 @@
+"""Evaluation against ground truth."""
+
+from turbinefit.eval.metrics import Accuracy as Accuracy
+from turbinefit.eval.metrics import accuracy as accuracy

@@ -1,0 +1,63 @@
+"""Accuracy of an estimate against ground truth (no alignment: the gauge is fixed by the
+first keyframe, so estimates live in the ground truth's world frame)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from turbinefit.geometry.se3 import SE3, pose_errors
+from turbinefit.turbine.model import (
+    PAPER_GEOMETRY,
+    TurbineGeometry,
+    TurbineParams,
+    model_point_error,
+    param_errors,
+)
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """Errors of poses and turbine against ground truth.
+
+    Attributes:
+        position_error_m: mean keyframe position error [m].
+        orientation_error_deg: mean keyframe orientation error [deg].
+        max_position_error_m, max_orientation_error_deg: worst keyframe.
+        model_point_error_m: mean 3-D distance of the six model points [m] (tips matched
+            modulo the blade symmetry).
+        param_errors: signed error of each turbine parameter (metres; angles in degrees,
+            wrapped modulo their periods).
+    """
+
+    position_error_m: float
+    orientation_error_deg: float
+    max_position_error_m: float
+    max_orientation_error_deg: float
+    model_point_error_m: float
+    param_errors: dict[str, float]
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def accuracy(
+    world_T_cam: SE3, turbine: TurbineParams, gt_world_T_cam: SE3, gt_turbine: TurbineParams,
+    geometry: TurbineGeometry = PAPER_GEOMETRY,
+) -> Accuracy:
+    """Errors of (poses, turbine) against ground truth."""
+    dpos, dang = pose_errors(world_T_cam, gt_world_T_cam)
+    dang_deg = np.degrees(dang)
+    perr = param_errors(turbine, gt_turbine)
+    pdict = {
+        name: float(math.degrees(v) if ang else v)
+        for name, v, ang in zip(TurbineParams.NAMES, perr, TurbineParams.ANGULAR, strict=True)
+    }
+    return Accuracy(
+        position_error_m=float(dpos.mean()), orientation_error_deg=float(dang_deg.mean()),
+        max_position_error_m=float(dpos.max()), max_orientation_error_deg=float(dang_deg.max()),
+        model_point_error_m=model_point_error(turbine, gt_turbine, geometry),
+        param_errors=pdict,
+    )

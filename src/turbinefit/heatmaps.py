@@ -1,0 +1,110 @@
+"""Heat-map channels and read access to a flight's heat-maps.
+
+A keyframe's heat-maps are a float32 array (7, H, W) with values in [0, 1]; element
+``[c, i, j]`` is channel ``c`` at pixel ``u = j, v = i``. Channel order (the CNN's output
+and the simulator's), fixed for the whole package:
+
+====  ==================  ==================================
+ 0    point_base          turbine base (paper P^P_g)
+ 1    point_tower_top     top of the tower (P^P_t)
+ 2    point_hub           centre of the blades (P^P_r)
+ 3    point_blade_tip     all three blade tips (P^P_b)
+ 4    line_tower          tower line (P^L_t)
+ 5    line_nacelle        tower top -> hub (P^L_r)
+ 6    line_blade          all three blades (P^L_b)
+====  ==================  ==================================
+
+:class:`HeatmapStack` holds either one in-memory array (N, 7, H, W) or one array per
+keyframe (typically read-only memory maps of ``heatmaps/*.npy``, so that a 1000-keyframe
+flight costs no RAM until pixels are touched); the costs only ever *gather* pixels from it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+CHANNEL_NAMES = (
+    "point_base", "point_tower_top", "point_hub", "point_blade_tip",
+    "line_tower", "line_nacelle", "line_blade",
+)
+NUM_CHANNELS = 7
+
+
+class NonFiniteHeatmapError(ValueError):
+    """A gathered heat-map value was NaN or infinite (names the keyframe index)."""
+
+    def __init__(self, keyframe: int) -> None:
+        super().__init__(f"heat-map of keyframe {keyframe} contains NaN or inf")
+        self.keyframe = keyframe
+
+
+class HeatmapStack:
+    """Read access to N keyframes' heat-maps of a common shape (7, H, W).
+
+    Args:
+        maps: an array (N, 7, H, W) or a sequence of N arrays (7, H, W) (e.g. memory maps).
+            Values are used as given (float32 in [0, 1] expected); nothing is copied.
+    """
+
+    def __init__(self, maps: NDArray[np.floating] | Sequence[NDArray[np.floating]]) -> None:
+        if isinstance(maps, np.ndarray):
+            if maps.ndim != 4 or maps.shape[1] != NUM_CHANNELS:
+                raise ValueError(f"heat-maps must be (N, 7, H, W), got {maps.shape}")
+            self._stacked: NDArray[np.floating] | None = maps
+            self._list: list[NDArray[np.floating]] = []
+            self.num_keyframes = maps.shape[0]
+            self.height, self.width = int(maps.shape[2]), int(maps.shape[3])
+        else:
+            self._stacked = None
+            self._list = list(maps)
+            if not self._list:
+                raise ValueError("no heat-maps")
+            shape = self._list[0].shape
+            for k, m in enumerate(self._list):
+                if m.shape != shape or len(shape) != 3 or shape[0] != NUM_CHANNELS:
+                    raise ValueError(f"heat-map {k} has shape {m.shape}, expected (7, H, W)")
+            self.num_keyframes = len(self._list)
+            self.height, self.width = int(shape[1]), int(shape[2])
+
+    def __len__(self) -> int:
+        return self.num_keyframes
+
+    def __getitem__(self, k: int) -> NDArray[np.floating]:
+        """Keyframe ``k``'s heat-maps (7, H, W) (a view, not a copy)."""
+        if self._stacked is not None:
+            return self._stacked[k]
+        return self._list[k]
+
+    def subset(self, keyframes: NDArray[np.int_]) -> HeatmapStack:
+        """A stack of the given keyframes (no copy for per-keyframe storage)."""
+        if self._stacked is not None:
+            return HeatmapStack(self._stacked[keyframes])
+        return HeatmapStack([self._list[int(k)] for k in keyframes])
+
+    def gather(self, keyframes: NDArray[np.int_], flat_index: NDArray[np.int_]) -> NDArray[np.float64]:
+        """Values at flat indices into each keyframe's (7 * H * W) array.
+
+        Args:
+            keyframes: (K,) keyframe indices.
+            flat_index: (K, ...) indices ``c * H * W + i * W + j``, in range.
+
+        Returns:
+            (K, ...) float64 values. Raises :class:`NonFiniteHeatmapError` on NaN/inf.
+        """
+        if self._stacked is not None:
+            plane = NUM_CHANNELS * self.height * self.width
+            flat = self._stacked.reshape(-1)
+            shape = (-1,) + (1,) * (flat_index.ndim - 1)
+            out = flat[keyframes.reshape(shape).astype(np.int64) * plane + flat_index]
+        else:
+            out = np.empty(flat_index.shape, dtype=np.float32)
+            for row, k in enumerate(keyframes):
+                out[row] = self._list[int(k)].reshape(-1)[flat_index[row]]
+        vals = out.astype(np.float64)
+        if not np.all(np.isfinite(vals)):
+            bad = np.nonzero(~np.isfinite(vals).reshape(vals.shape[0], -1).all(axis=1))[0][0]
+            raise NonFiniteHeatmapError(int(keyframes[bad]))
+        return vals

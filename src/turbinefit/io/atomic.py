@@ -1,0 +1,203 @@
+"""Atomic output: whole files and whole directories appear complete or not at all.
+
+Nothing here knows about file formats; the writers in :mod:`turbinefit.io` use it.
+
+* :func:`write_text_atomic` / :func:`write_bytes_atomic` write into a hidden temporary file
+  ``.<name>.tmp-<random>`` in the destination's directory, flush and ``fsync`` it, then
+  ``os.replace`` it over the destination. Readers see the old file or the new one, never a
+  partial one; an existing file is replaced.
+* :func:`atomic_output_dir` yields a hidden temporary sibling directory
+  ``.<name>.tmp-<random>`` to fill, and moves it into place when the ``with`` block
+  succeeds. **Existing destination:** a missing path or an empty directory is simply
+  replaced; a non-empty directory is refused with an :class:`InputError` unless
+  ``overwrite=True`` (and an optional ``may_replace`` check accepts it), in which case the
+  old directory is renamed aside (``.<name>.old-<random>``), the new one renamed into place
+  and only then the old one deleted; if the second rename fails the old directory is put
+  back. A destination that is a file or a symbolic link is always refused.
+* On any exception (including ``KeyboardInterrupt``) the temporary file or directory is
+  removed and the destination is left untouched. Only a hard kill (SIGKILL, power loss) can
+  leave a ``.<name>.tmp-*`` entry behind; it is never mistaken for output.
+
+Directory writes are atomic with respect to other processes and to exceptions; files inside
+the temporary directory are not individually ``fsync``-ed (writing thousands of heat-maps
+must stay fast), so after a power loss the renamed directory's contents are up to the OS.
+
+Also :func:`read_text`, the one place where a failing *read* of a text file becomes an
+:class:`InputError` naming the file.
+
+All failures are :class:`turbinefit.errors.InputError` naming the path concerned.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import uuid
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from turbinefit.errors import InputError
+
+StrPath = str | os.PathLike[str]
+
+
+def _sibling(path: Path, tag: str) -> Path:
+    """A hidden, random, not yet existing sibling name of ``path``."""
+    return path.with_name(f".{path.name}.{tag}-{uuid.uuid4().hex[:12]}")
+
+
+def _make_parent(path: Path) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create directory: {e.strerror or e}", path=path.parent) from e
+
+
+def read_text(path: StrPath) -> str:
+    """The contents of a UTF-8 text file (a BOM is ignored); errors become InputErrors."""
+    p = Path(path)
+    try:
+        return p.read_text(encoding="utf-8-sig")
+    except FileNotFoundError as e:
+        raise InputError("file not found", path=p) from e
+    except IsADirectoryError as e:
+        raise InputError("is a directory, expected a file", path=p) from e
+    except UnicodeDecodeError as e:
+        raise InputError(f"not a UTF-8 text file (byte {e.start})", path=p) from e
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", path=p) from e
+
+
+def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically (see the module docstring).
+
+    Creates missing parent directories. The new file gets the default permissions
+    (``0o666`` minus the umask). Returns the path written.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a directory, cannot write a file there", path=p)
+    _make_parent(p)
+    tmp = _sibling(p, "tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+    except OSError as e:
+        raise InputError(f"cannot write: {e.strerror or e}", path=p) from e
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            if fsync:
+                os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException as e:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise InputError(f"cannot write: {e.strerror or e}", path=p) from e
+        raise
+    return p
+
+
+def write_text_atomic(path: StrPath, text: str, fsync: bool = True) -> Path:
+    """Write ``text`` (UTF-8, ``\\n`` line ends) to ``path`` atomically."""
+    return write_bytes_atomic(path, text.encode("utf-8"), fsync=fsync)
+
+
+def _check_destination(path: Path, overwrite: bool,
+                       may_replace: Callable[[Path], str | None] | None) -> None:
+    if path.is_symlink():
+        raise InputError("output path is a symbolic link; refusing to replace it", path=path)
+    if not path.exists():
+        return
+    if not path.is_dir():
+        raise InputError("output path exists and is not a directory", path=path)
+    try:
+        non_empty = any(path.iterdir())
+    except OSError as e:
+        raise InputError(f"cannot list output directory: {e.strerror or e}", path=path) from e
+    if not non_empty:
+        return
+    if not overwrite:
+        raise InputError("output directory exists and is not empty (pass overwrite=True to "
+                         "replace it)", path=path)
+    if may_replace is not None:
+        reason = may_replace(path)
+        if reason is not None:
+            raise InputError(f"refusing to overwrite: {reason}", path=path)
+
+
+def _move_into_place(tmp: Path, path: Path) -> None:
+    if not os.path.lexists(path):
+        try:
+            os.rename(tmp, path)
+        except OSError as e:
+            raise InputError(f"cannot move output into place: {e.strerror or e}", path=path) from e
+        return
+    old = _sibling(path, "old")
+    try:
+        os.rename(path, old)
+    except OSError as e:
+        raise InputError(f"cannot move the old directory aside: {e.strerror or e}",
+                         path=path) from e
+    try:
+        os.rename(tmp, path)
+    except BaseException as e:
+        os.rename(old, path)  # put the old directory back
+        if isinstance(e, OSError):
+            raise InputError(f"cannot move output into place: {e.strerror or e}",
+                             path=path) from e
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+    if os.path.lexists(old):
+        warnings.warn(f"could not delete the replaced directory {old}", RuntimeWarning,
+                      stacklevel=3)
+
+
+@contextlib.contextmanager
+def atomic_output_dir(path: StrPath, overwrite: bool = False,
+                      may_replace: Callable[[Path], str | None] | None = None) -> Iterator[Path]:
+    """Build a directory in a temporary sibling and move it to ``path`` on success.
+
+    Usage::
+
+        with atomic_output_dir("out/flight", overwrite=False) as tmp:
+            (tmp / "a.txt").write_text("...")
+        # out/flight now holds a.txt; on an exception nothing changed
+
+    Args:
+        path: the final directory. Missing parents are created.
+        overwrite: replace an existing **non-empty** directory. Without it such a directory
+            is refused with an :class:`InputError` before anything is written (and checked
+            again before the final rename). A missing path or an empty directory is always
+            fine; a file or symbolic link at ``path`` is always refused.
+        may_replace: optional safety check called with an existing non-empty ``path`` when
+            ``overwrite`` is true; returns ``None`` to allow replacing it or a reason
+            (e.g. "contains files that are not part of a flight") to refuse.
+
+    Yields:
+        The empty temporary directory ``.<name>.tmp-<random>`` next to ``path``. It is
+        renamed to ``path`` when the block exits normally and deleted when it raises.
+    """
+    p = Path(path)
+    _check_destination(p, overwrite, may_replace)
+    _make_parent(p)
+    while True:
+        tmp = _sibling(p, "tmp")
+        try:
+            os.mkdir(tmp)  # 0o777 minus umask, unlike tempfile.mkdtemp's 0o700
+            break
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
+        except OSError as e:
+            raise InputError(f"cannot create a temporary directory: {e.strerror or e}",
+                             path=p.parent) from e
+    try:
+        yield tmp
+        _check_destination(p, overwrite, may_replace)
+        _move_into_place(tmp, p)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

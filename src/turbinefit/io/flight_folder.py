@@ -1,0 +1,388 @@
+"""Flight folders: a whole :class:`~turbinefit.flight.Flight` on disk.
+
+Layout (names exact)::
+
+    <folder>/
+        camera.yaml                 intrinsics, ROS camera_info YAML        (required)
+        keyframes.txt               TUM, initial world_T_cam per keyframe   (required)
+        turbine.yaml                initial turbine parameters              (required)
+        heatmaps/<t>.npy            one per keyframe                        (required)
+        odometry.txt                TUM, same timestamps                    (optional)
+        groundtruth.txt             TUM, ground-truth world_T_cam           (optional)
+        turbine_groundtruth.yaml    ground-truth turbine parameters         (optional)
+
+* Poses: camera-to-world ``world_T_cam`` (OpenCV camera frame, world z up), metres; TUM
+  files store quaternions xyzw (see :mod:`turbinefit.io.tum`).
+* Timestamps: seconds. ``odometry.txt`` and ``groundtruth.txt`` must list the same
+  timestamps as ``keyframes.txt`` (each within 1e-6 s).
+* Turbine: metres and radians (see :mod:`turbinefit.io.turbine_yaml`).
+* Heat-maps: ``heatmaps/<timestamp formatted %.6f>.npy`` (e.g. ``12.500000.npy``), a
+  C-ordered little-endian float32 ``.npy`` array (7, H, W), H x W = ``image_height`` x
+  ``image_width`` of ``camera.yaml``, channels in the order of
+  :data:`turbinefit.heatmaps.CHANNEL_NAMES`. Other files in ``heatmaps/`` are ignored.
+  Values are not checked when reading (that would read the data).
+
+Reading with ``mmap=True`` (default) maps every heat-map file read-only; only the ``.npy``
+headers are read (one small read per file, identical headers parsed once), so opening a
+1000-keyframe flight takes a few tens of milliseconds and no RAM until pixels are touched.
+Each map holds one open file descriptor (Python < 3.13's ``mmap`` keeps one), so the
+process's soft open-file limit is raised towards the hard limit when a flight needs it.
+``mmap=False`` reads everything into one (N, 7, H, W) float32 array.
+
+Every problem is an :class:`~turbinefit.errors.InputError` naming the file (and line or
+field): missing folder or required file, malformed content, a keyframe without its
+heat-map file, a heat-map of the wrong shape or dtype, or a file that is not a valid
+``.npy``.
+
+:func:`write_flight` writes the whole folder atomically (see
+:func:`turbinefit.io.atomic.atomic_output_dir`): into a hidden temporary sibling, renamed
+into place at the end; an existing non-empty folder is refused unless ``overwrite=True``,
+and even then only if it holds nothing but flight-folder entries.
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+from numpy.lib import format as npy_format
+from numpy.typing import ArrayLike, NDArray
+
+from turbinefit.errors import InputError
+from turbinefit.flight import Flight
+from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
+from turbinefit.io.atomic import StrPath, atomic_output_dir, write_text_atomic
+from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
+from turbinefit.io.tum import TumTrajectory, format_tum, read_tum_lines
+from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
+from turbinefit.turbine.model import TurbineParams
+
+CAMERA_FILE = "camera.yaml"
+KEYFRAMES_FILE = "keyframes.txt"
+ODOMETRY_FILE = "odometry.txt"
+TURBINE_FILE = "turbine.yaml"
+HEATMAP_DIR = "heatmaps"
+GT_POSES_FILE = "groundtruth.txt"
+GT_TURBINE_FILE = "turbine_groundtruth.yaml"
+#: Every entry a flight folder may contain.
+FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
+                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
+#: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
+TIMESTAMP_TOLERANCE = 1e-6
+
+_NPY_MAGIC = b"\x93NUMPY"
+_HEATMAP_DTYPE = np.dtype("<f4")
+
+
+def heatmap_filename(timestamp: float) -> str:
+    """The file name of a keyframe's heat-maps, ``'%.6f.npy' % timestamp``."""
+    return f"{timestamp:.6f}.npy"
+
+
+# --------------------------------------------------------------------------- heat-maps
+
+_Header = tuple[tuple[int, ...], bool, np.dtype]
+
+
+def _read_npy_header(f: io.RawIOBase, fname: str,
+                     cache: dict[bytes, _Header]) -> tuple[_Header, int]:
+    """Parse a ``.npy`` header from an open file; returns (shape, fortran, dtype), offset."""
+    head = f.read(512) or b""
+    if len(head) < 10 or not head.startswith(_NPY_MAGIC):
+        raise InputError("not a .npy file (bad magic bytes)", path=Path(fname))
+    major = head[6]
+    if major == 1:
+        offset = 10 + int.from_bytes(head[8:10], "little")
+    elif major == 2:
+        offset = 12 + int.from_bytes(head[8:12], "little")
+    else:
+        raise InputError(f"unsupported .npy format version {major}.{head[7]}", path=Path(fname))
+    if len(head) < offset:
+        f.seek(0)
+        head = f.read(offset) or b""
+        if len(head) < offset:
+            raise InputError("truncated .npy header", path=Path(fname))
+    key = head[:offset]
+    parsed = cache.get(key)
+    if parsed is None:
+        stream = io.BytesIO(key[8:])
+        try:
+            if major == 1:
+                shape, fortran, dtype = npy_format.read_array_header_1_0(stream)
+            else:
+                shape, fortran, dtype = npy_format.read_array_header_2_0(stream)
+        except Exception as e:  # ValueError, SyntaxError, tokenize.TokenError, ...
+            raise InputError(f"invalid .npy header: {e}", path=Path(fname)) from e
+        parsed = (tuple(int(n) for n in shape), bool(fortran), np.dtype(dtype))
+        cache[key] = parsed
+    return parsed, offset
+
+
+def _check_heatmap(header: _Header, offset: int, size: int, shape: tuple[int, ...],
+                   fname: str) -> None:
+    got_shape, fortran, dtype = header
+    if dtype != _HEATMAP_DTYPE:
+        raise InputError(f"dtype {dtype.str}, expected float32 (<f4)", path=Path(fname))
+    if got_shape != shape:
+        raise InputError(f"shape {got_shape}, expected {shape} (7 channels x image_height x "
+                         "image_width of camera.yaml)", path=Path(fname))
+    if fortran:
+        raise InputError("array is Fortran-ordered; save it C-ordered "
+                         "(np.save(path, np.ascontiguousarray(a)))", path=Path(fname))
+    need = offset + math.prod(shape) * dtype.itemsize
+    if size < need:
+        raise InputError(f"truncated: {size} bytes, expected {need}", path=Path(fname))
+
+
+def _raise_open_file_limit(extra: int) -> None:
+    """Make room for ``extra`` more open files: raise the soft RLIMIT_NOFILE (at most to
+    the hard limit) if the descriptors already open plus ``extra`` exceed it."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on Unix
+        return
+    try:
+        in_use = len(os.listdir("/proc/self/fd"))
+    except OSError:  # not Linux: assume a few hundred
+        in_use = 256
+    needed = in_use + extra
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft >= needed:
+        return
+    target = needed if hard == resource.RLIM_INFINITY else min(needed, hard)
+    try:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+    except (ValueError, OSError):  # pragma: no cover - e.g. macOS caps at OPEN_MAX
+        pass
+
+
+def _os_error(e: OSError, n: int, fname: str) -> InputError:
+    if e.errno in (errno.EMFILE, errno.ENFILE):
+        return InputError(f"too many open files: memory-mapping {n} heat-maps needs one file "
+                          "descriptor each; raise the limit (ulimit -n) or read with mmap=False",
+                          path=Path(fname))
+    return InputError(f"cannot read: {e.strerror or e}", path=Path(fname))
+
+
+def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int, width: int,
+                  mmap: bool = True, keyframes_file: StrPath | None = None,
+                  keyframe_lines: ArrayLike | None = None) -> HeatmapStack:
+    """Open ``folder/<%.6f timestamp>.npy`` for every timestamp (see module docstring).
+
+    Args:
+        folder: the ``heatmaps`` directory.
+        timestamps: (N,) keyframe timestamps [s].
+        height, width: expected image size [px].
+        mmap: map files read-only (default) or load all into one (N, 7, H, W) array.
+        keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
+
+    Raises:
+        InputError: naming the heat-map file that is missing or invalid.
+    """
+    import mmap as mmap_module
+
+    folder = Path(folder)
+    t = np.asarray(timestamps, dtype=np.float64)
+    lines = None if keyframe_lines is None else np.asarray(keyframe_lines).tolist()
+    if not folder.is_dir():
+        raise InputError("heat-map directory not found", path=folder)
+    shape = (NUM_CHANNELS, int(height), int(width))
+    names = [heatmap_filename(x) for x in t.tolist()]
+    if len(set(names)) != len(names):
+        raise InputError("two keyframe timestamps have the same %.6f text, so they would "
+                         "share a heat-map file", path=keyframes_file or folder)
+    cache: dict[bytes, _Header] = {}
+    stacked = None
+    maps: list[NDArray[np.float32]] = []
+    if mmap:
+        _raise_open_file_limit(len(names) + 64)
+    else:
+        stacked = np.empty((len(names), *shape), dtype=np.float32)
+    base = os.fspath(folder)
+    for k, name in enumerate(names):
+        fname = os.path.join(base, name)
+        try:
+            f = open(fname, "rb", buffering=0)  # closed by the with below
+        except FileNotFoundError:
+            where = f"keyframe {k}, timestamp {name[:-4]}"
+            if keyframes_file is not None:
+                line = f", line {lines[k]}" if lines is not None else ""
+                where += f" ({Path(keyframes_file).name}{line})"
+            raise InputError(f"heat-map file missing for {where}", path=Path(fname)) from None
+        except OSError as e:
+            raise _os_error(e, len(names), fname) from e
+        with f:
+            try:
+                header, offset = _read_npy_header(f, fname, cache)
+                _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname)
+                if stacked is None:
+                    mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
+                    maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
+                else:
+                    f.seek(offset)
+                    view = memoryview(stacked[k]).cast("B")
+                    done = 0
+                    while done < view.nbytes:
+                        n = f.readinto(view[done:])
+                        if not n:
+                            raise InputError("truncated", path=Path(fname))
+                        done += n
+            except OSError as e:
+                raise _os_error(e, len(names), fname) from e
+    return HeatmapStack(stacked if stacked is not None else maps)
+
+
+# --------------------------------------------------------------------------- flight
+
+def _required(path: Path) -> Path:
+    if not path.exists():
+        raise InputError("required file of a flight folder is missing", path=path)
+    return path
+
+
+def _read_matching_tum(path: Path, keyframes: TumTrajectory, keyframes_path: Path) -> SE3:
+    traj = read_tum_lines(path)
+    n, m = len(traj.timestamps), len(keyframes.timestamps)
+    if n != m:
+        raise InputError(f"{n} poses but {keyframes_path.name} has {m}; the timestamps must "
+                         "be the same", path=path)
+    diff = np.abs(traj.timestamps - keyframes.timestamps)
+    bad = np.nonzero(diff > TIMESTAMP_TOLERANCE)[0]
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(
+            f"timestamp {traj.timestamps[k]!r} differs from keyframe {k} of "
+            f"{keyframes_path.name} ({keyframes.timestamps[k]!r}, line {keyframes.lines[k]}) "
+            f"by more than {TIMESTAMP_TOLERANCE:g} s", path=path, line=int(traj.lines[k]))
+    return traj.poses
+
+
+def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
+    """Read a flight folder (layout in the module docstring).
+
+    Args:
+        folder: the flight folder.
+        mmap: memory-map the heat-maps (default; only headers are read) or load them into
+            one (N, 7, H, W) float32 array.
+
+    Raises:
+        InputError: naming the file (and line or field) of the first problem found.
+    """
+    root = Path(folder)
+    if not root.exists():
+        raise InputError("flight folder not found", path=root)
+    if not root.is_dir():
+        raise InputError("not a directory (expected a flight folder)", path=root)
+    camera = read_camera_yaml(_required(root / CAMERA_FILE))
+    kf_path = _required(root / KEYFRAMES_FILE)
+    keyframes = read_tum_lines(kf_path)
+    turbine = read_turbine_yaml(_required(root / TURBINE_FILE))
+    hm_dir = root / HEATMAP_DIR
+    if not hm_dir.is_dir():
+        raise InputError("required heat-map directory of a flight folder is missing",
+                         path=hm_dir)
+
+    odometry = gt_poses = None
+    gt_turbine: TurbineParams | None = None
+    if (root / ODOMETRY_FILE).exists():
+        odometry = _read_matching_tum(root / ODOMETRY_FILE, keyframes, kf_path)
+    if (root / GT_POSES_FILE).exists():
+        gt_poses = _read_matching_tum(root / GT_POSES_FILE, keyframes, kf_path)
+    if (root / GT_TURBINE_FILE).exists():
+        gt_turbine = read_turbine_yaml(root / GT_TURBINE_FILE)
+
+    heatmaps = read_heatmaps(hm_dir, keyframes.timestamps, camera.height, camera.width,
+                             mmap=mmap, keyframes_file=kf_path, keyframe_lines=keyframes.lines)
+    try:
+        return Flight(camera=camera, timestamps=keyframes.timestamps,
+                      world_T_cam=keyframes.poses, heatmaps=heatmaps, turbine=turbine,
+                      odometry=odometry, gt_world_T_cam=gt_poses, gt_turbine=gt_turbine)
+    except ValueError as e:  # pragma: no cover - everything is checked above
+        raise InputError(str(e), path=root) from e
+
+
+def _only_flight_entries(folder: Path) -> str | None:
+    """None if ``folder`` holds only flight-folder entries (safe to replace), else why not."""
+    for entry in folder.iterdir():
+        if entry.name not in FLIGHT_ENTRIES:
+            return f"{entry.name!r} is not part of a flight folder"
+        if entry.name == HEATMAP_DIR:
+            if not entry.is_dir() or entry.is_symlink():
+                return f"{entry.name!r} is not a directory"
+            for sub in entry.iterdir():
+                if sub.suffix != ".npy" or not sub.is_file():
+                    return f"'{HEATMAP_DIR}/{sub.name}' is not a heat-map file"
+    return None
+
+
+def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
+                 camera_name: str = "turbinefit") -> Path:
+    """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
+
+    Everything is written into a hidden temporary sibling of ``folder`` and renamed into
+    place at the end; on any error nothing changes and no temporary files remain.
+
+    Args:
+        flight: the flight; heat-maps are written as float32 (converted if needed), one
+            ``np.save`` per keyframe. Optional files are written when present.
+        folder: destination. Missing parents are created. An existing empty directory is
+            replaced. An existing non-empty directory is refused with an
+            :class:`InputError` unless ``overwrite=True``, and even then only if it contains
+            nothing but flight-folder entries (a guard against ``overwrite`` on a wrong
+            path). Rewriting the folder a flight was memory-mapped from is safe.
+        overwrite: replace an existing non-empty flight folder.
+        camera_name: ``camera_name`` written to ``camera.yaml``.
+
+    Returns:
+        The folder written.
+
+    Raises:
+        InputError: naming the destination (file) for unwritable data or I/O failures.
+    """
+    root = Path(folder)
+    n = flight.num_keyframes
+    shape = (NUM_CHANNELS, flight.camera.height, flight.camera.width)
+    if len(flight.heatmaps) != n or (flight.heatmaps.height, flight.heatmaps.width) != shape[1:]:
+        raise InputError(f"{len(flight.heatmaps)} heat-maps of {flight.heatmaps.height}x"
+                         f"{flight.heatmaps.width} for {n} keyframes of a "
+                         f"{shape[2]}x{shape[1]} camera", path=root / HEATMAP_DIR)
+    # Format (and so validate) all text before touching the disk; errors name final paths.
+    texts = {
+        CAMERA_FILE: format_camera_yaml(flight.camera, camera_name),
+        KEYFRAMES_FILE: format_tum(flight.timestamps, flight.world_T_cam, root / KEYFRAMES_FILE,
+                                   "keyframe poses world_T_cam (camera-to-world)"),
+        TURBINE_FILE: format_turbine_yaml(flight.turbine, "initial turbine parameters",
+                                          root / TURBINE_FILE),
+    }
+    if flight.odometry is not None:
+        texts[ODOMETRY_FILE] = format_tum(flight.timestamps, flight.odometry,
+                                          root / ODOMETRY_FILE, "odometry world_T_cam")
+    if flight.gt_world_T_cam is not None:
+        texts[GT_POSES_FILE] = format_tum(flight.timestamps, flight.gt_world_T_cam,
+                                          root / GT_POSES_FILE, "ground-truth world_T_cam")
+    if flight.gt_turbine is not None:
+        texts[GT_TURBINE_FILE] = format_turbine_yaml(
+            flight.gt_turbine, "ground-truth turbine parameters", root / GT_TURBINE_FILE)
+
+    with atomic_output_dir(root, overwrite=overwrite, may_replace=_only_flight_entries) as tmp:
+        for name, text in texts.items():
+            write_text_atomic(tmp / name, text, fsync=False)
+        hm_dir = tmp / HEATMAP_DIR
+        hm_dir.mkdir()
+        for k, t in enumerate(flight.timestamps.tolist()):
+            arr = np.ascontiguousarray(flight.heatmaps[k], dtype=np.float32)
+            if arr.shape != shape:  # pragma: no cover - HeatmapStack guarantees it
+                raise InputError(f"heat-map {k} has shape {arr.shape}, expected {shape}",
+                                 path=root / HEATMAP_DIR / heatmap_filename(t))
+            try:
+                with open(hm_dir / heatmap_filename(t), "wb") as f:
+                    np.save(f, arr, allow_pickle=False)
+            except OSError as e:
+                raise InputError(f"cannot write: {e.strerror or e}",
+                                 path=root / HEATMAP_DIR / heatmap_filename(t)) from e
+    return root

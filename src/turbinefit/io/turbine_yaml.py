@@ -1,0 +1,87 @@
+"""Turbine parameter files: the seven :class:`~turbinefit.turbine.model.TurbineParams`.
+
+Format (YAML mapping, exactly these seven keys, any order; comments allowed)::
+
+    # optional comment
+    base_x: 12.0          # m, tower base in the world frame (ground plane z = 0)
+    base_y: -3.5          # m
+    tower_height: 80.0    # m, > 0
+    heading: 1.2          # rad, nacelle direction from world x, counter-clockwise about z
+    nacelle_length: 4.0   # m, >= 0
+    blade_rotation: 0.3   # rad, blade 1 angle about the nacelle axis, 0 = up
+    blade_length: 40.0    # m, > 0
+
+World frame: metres, right-handed, z up (see :mod:`turbinefit.turbine.model`). Angles are
+radians and are not wrapped on reading or writing.
+
+Reading raises :class:`~turbinefit.errors.InputError` naming the file and key for a missing
+key, an unknown key, a duplicate key, a non-numeric or non-finite value, or a value out of
+range (``tower_height > 0``, ``blade_length > 0``, ``nacelle_length >= 0``). Writing checks
+the same ranges (so every written file can be read back; call
+:meth:`TurbineParams.canonical` first to turn a negative blade length into a positive one)
+and uses ``repr`` precision, so a round trip is exact.
+"""
+
+from __future__ import annotations
+
+from turbinefit.errors import InputError
+from turbinefit.io.atomic import StrPath, write_text_atomic
+from turbinefit.io.camera_yaml import load_yaml_mapping, parse_number, yaml_float
+from turbinefit.turbine.model import TurbineParams
+
+_UNITS = dict(zip(TurbineParams.NAMES, ("m", "m", "m", "rad", "m", "rad", "m"), strict=True))
+
+
+def _check_ranges(values: dict[str, float], path: StrPath | None) -> None:
+    for key in ("tower_height", "blade_length"):
+        if not values[key] > 0.0:
+            raise InputError(f"must be > 0, got {values[key]!r}", path=path, field=key)
+    if not values["nacelle_length"] >= 0.0:
+        raise InputError(f"must be >= 0, got {values['nacelle_length']!r}", path=path,
+                         field="nacelle_length")
+
+
+def read_turbine_yaml(path: StrPath) -> TurbineParams:
+    """Read turbine parameters (metres, radians) from a YAML file (see module docstring).
+
+    Raises:
+        InputError: naming the file and the offending key.
+    """
+    data = load_yaml_mapping(path)
+    for key in data:
+        if key not in TurbineParams.NAMES:
+            raise InputError(f"unknown key (expected: {', '.join(TurbineParams.NAMES)})",
+                             path=path, field=key)
+    values: dict[str, float] = {}
+    for key in TurbineParams.NAMES:
+        if key not in data:
+            raise InputError("missing", path=path, field=key)
+        values[key] = parse_number(data[key], path, key)
+    _check_ranges(values, path)
+    return TurbineParams(**values)
+
+
+def format_turbine_yaml(params: TurbineParams, comment: str | None = None,
+                        path: StrPath | None = None) -> str:
+    """The text :func:`write_turbine_yaml` writes (``path`` only names errors)."""
+    values = params.to_dict()
+    _check_ranges(values, path)
+    lines = ["# " + c if c else "#" for c in comment.splitlines()] if comment else []
+    width = max(len(k) for k in TurbineParams.NAMES) + 2
+    for key in TurbineParams.NAMES:
+        lines.append(f"{key + ':':<{width}}{yaml_float(values[key])}  # {_UNITS[key]}")
+    return "\n".join(lines) + "\n"
+
+
+def write_turbine_yaml(path: StrPath, params: TurbineParams, comment: str | None = None) -> None:
+    """Write turbine parameters as YAML, atomically.
+
+    Args:
+        path: destination file (replaced if it exists).
+        params: the parameters (metres, radians), written with ``repr`` precision.
+        comment: optional text written as ``#`` lines at the top.
+
+    Raises:
+        InputError: naming ``path`` and the key, for a value out of range.
+    """
+    write_text_atomic(path, format_turbine_yaml(params, comment, path))

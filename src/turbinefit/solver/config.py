@@ -1,0 +1,146 @@
+"""Fit configuration: one frozen dataclass, every field documented, with named presets."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from turbinefit.turbine.model import TurbineGeometry
+
+Mode = Literal["joint", "pose", "turbine"]
+UnaryKind = Literal["interp", "corr", "none"]
+Gauge = Literal["first", "gps"]
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """How a flight is fitted. Units: pixels [px], metres [m], degrees [deg] as named."""
+
+    mode: Mode = "joint"
+    """joint: poses and turbine; pose: poses only (turbine fixed); turbine: turbine only."""
+    points: UnaryKind = "corr"
+    """Unary cost of the 6 model points: corr (window search, paper E_unary(1)), interp
+    (bicubic heat-map, E_unary(2)) or none. The paper found points=corr, lines=interp best."""
+    lines: UnaryKind = "interp"
+    """Unary cost of the line samples (same choices)."""
+    samples_per_line: int = 10
+    """Points sampled on each of the 5 model lines (interior, evenly spaced)."""
+    lambda_points: float = 1.0
+    """Weight lambda_P of the point-model term."""
+    lambda_lines: float = 1.0
+    """Weight lambda_L of the line-model term."""
+    lambda_pair: float = 1.0
+    """Weight lambda of the pairwise (relative-pose) term."""
+    pixel_sigma: float = 2.0
+    """Correspondence noise [px]: correspondence residuals are divided by it."""
+    pair_sigma_t: float = 0.1
+    """Default information matrix: std. dev. of a relative translation [m] per axis."""
+    pair_sigma_r_deg: float = 0.1
+    """Default information matrix: std. dev. of a relative rotation [deg] per axis."""
+    pair_information: tuple[float, ...] | None = None
+    """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
+    1/rad^2); overrides the two sigmas above."""
+    corr_radius: float = 20.0
+    """Radius of the circular window searched for point correspondences [px]."""
+    line_search: float = 20.0
+    """Half-length of the perpendicular search for line correspondences [px]."""
+    corr_threshold: float = 0.3
+    """Minimum heat-map value accepted as a correspondence."""
+    heatmap_sigma: float = 2.0
+    """Width of heat-map peaks and ridges [px] assumed by the interp terms' step model (it
+    shapes LM's steps, not the cost or its optimum)."""
+    border_margin: float = 8.0
+    """Width over which heat-map evidence fades out at the image border [px]."""
+    robust: Literal["none", "huber", "cauchy"] = "none"
+    """Robust loss on the image terms."""
+    robust_scale: float = 2.0
+    """Scale of the robust loss, in units of the whitened residual."""
+    gauge: Gauge = "first"
+    """first: hold the first keyframe's pose; gps: weak absolute position priors instead."""
+    gps_sigma: float = 3.0
+    """Std. dev. of the absolute position priors when gauge=gps [m]."""
+    max_iterations: int = 30
+    """Levenberg-Marquardt iterations per correspondence round."""
+    max_rounds: int = 6
+    """Correspondence rounds (re-search after each solve) when any term is corr."""
+    function_tolerance: float = 1e-3
+    """Stop when the cost fell by less than this fraction over the last
+    ``stall_iterations`` iterations."""
+    stall_iterations: int = 3
+    """Window of the function-tolerance test [iterations]."""
+    gradient_tolerance: float = 1e-10
+    """Stop when the max-norm of the gradient falls below this."""
+    parameter_tolerance: float = 1e-8
+    """Stop when the step is below this fraction of the state's norm."""
+    geometry: TurbineGeometry = field(default_factory=TurbineGeometry)
+    """Fixed shape details (shaft tilt, blade cone, hub offset); zeros = the paper's model."""
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"{name}: {why} (got {getattr(self, name)!r})")
+
+        if self.mode not in ("joint", "pose", "turbine"):
+            raise bad("mode", "must be joint, pose or turbine")
+        for name in ("points", "lines"):
+            if getattr(self, name) not in ("interp", "corr", "none"):
+                raise bad(name, "must be interp, corr or none")
+        if self.points == "none" and self.lines == "none":
+            raise ValueError("points and lines cannot both be none: no image evidence")
+        if self.gauge not in ("first", "gps"):
+            raise bad("gauge", "must be first or gps")
+        if self.robust not in ("none", "huber", "cauchy"):
+            raise bad("robust", "must be none, huber or cauchy")
+        if self.samples_per_line < 1:
+            raise bad("samples_per_line", "must be at least 1")
+        if self.max_iterations < 1 or self.max_rounds < 1 or self.stall_iterations < 1:
+            raise ValueError("max_iterations, max_rounds and stall_iterations must be >= 1")
+        positive = ("pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
+                    "line_search", "robust_scale", "gps_sigma", "heatmap_sigma")
+        for name in positive:
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise bad(name, "must be a positive number")
+        for name in ("lambda_points", "lambda_lines", "lambda_pair", "border_margin"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise bad(name, "must be a non-negative number")
+        if not 0 < self.corr_threshold < 1:
+            raise bad("corr_threshold", "must be in (0, 1)")
+        if self.pair_information is not None and len(self.pair_information) != 36:
+            raise bad("pair_information", "needs 36 values (a 6x6 matrix)")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["geometry"] = dataclasses.asdict(self.geometry)
+        return d
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> FitConfig:
+        """Build from a (e.g. YAML) mapping; unknown keys raise ValueError."""
+        names = {f.name for f in dataclasses.fields(FitConfig)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ValueError(f"unknown fit option(s): {', '.join(unknown)}")
+        d = dict(d)
+        if isinstance(d.get("geometry"), dict):
+            gnames = {f.name for f in dataclasses.fields(TurbineGeometry)}
+            gunk = sorted(set(d["geometry"]) - gnames)
+            if gunk:
+                raise ValueError(f"unknown geometry option(s): {', '.join(gunk)}")
+            d["geometry"] = TurbineGeometry(**d["geometry"])
+        if isinstance(d.get("pair_information"), list):
+            d["pair_information"] = tuple(float(x) for x in d["pair_information"])
+        return FitConfig(**d)
+
+
+#: Named configurations: the paper's four unary combinations and the three modes.
+PRESETS: dict[str, FitConfig] = {
+    "paper-best": FitConfig(points="corr", lines="interp"),
+    "all-interp": FitConfig(points="interp", lines="interp"),
+    "all-corr": FitConfig(points="corr", lines="corr"),
+    "paper-worst": FitConfig(points="interp", lines="corr"),
+    "pose-only": FitConfig(mode="pose"),
+    "turbine-only": FitConfig(mode="turbine"),
+}

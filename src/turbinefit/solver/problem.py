@@ -1,0 +1,282 @@
+"""The joint least-squares problem of a flight: residuals, Jacobians, normal equations.
+
+Unknowns: every keyframe pose ``world_T_cam[k]`` (6 local coordinates each, see
+:meth:`turbinefit.geometry.se3.SE3.retract`) and theta (7). Cost (Ceres' convention)::
+
+    E = 1/2 sum rho(|r_image|^2) + 1/2 sum |r_pair|^2 + 1/2 sum |r_prior|^2
+
+with the image residuals of :mod:`turbinefit.costs.heatmap_cost` (interp) and
+:mod:`turbinefit.costs.correspondence` (corr) for the 6 model points (weight lambda_P) and
+the line samples (lambda_L), the pairwise term of :mod:`turbinefit.costs.pairwise`
+(lambda) between consecutive keyframes, and, with ``gauge="gps"``, absolute position priors.
+
+Everything is evaluated for all keyframes in one vectorised pass; the normal equations are
+accumulated per keyframe (6x6 pose blocks, 6x7 pose-turbine blocks, one 7x7 turbine block)
+so that cost and memory grow linearly with the number of keyframes.
+
+Gauge: the pairwise term is relative only, so with theta free a global x-y shift and yaw
+of everything is unobservable (theta's base and heading absorb it). By default the first
+keyframe's pose is held fixed; ``gauge="gps"`` instead anchors every keyframe weakly to its
+initial (GPS) position.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
+from turbinefit.costs.heatmap_cost import heatmap_model, heatmap_residuals
+from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
+from turbinefit.costs.projection import project_points
+from turbinefit.costs.robust import RobustLoss
+from turbinefit.flight import Flight
+from turbinefit.geometry.se3 import SE3
+from turbinefit.solver.config import FitConfig
+from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class Correspondences:
+    """Fixed 2-D targets of the corr terms: (N, M, 2) pixels and a (N, M) found-mask."""
+
+    point_target: FloatArray | None = None
+    point_found: NDArray[np.bool_] | None = None
+    line_target: FloatArray | None = None
+    line_found: NDArray[np.bool_] | None = None
+
+    def count(self) -> int:
+        n = 0
+        for f in (self.point_found, self.line_found):
+            if f is not None:
+                n += int(f.sum())
+        return n
+
+
+@dataclass
+class Linearization:
+    """Cost and (undamped) normal equations at one state.
+
+    ``D`` (N, 6, 6) / ``B`` (N-1, 6, 6) are the diagonal / sub-diagonal pose blocks of
+    J^T J, ``C`` (N, 6, 7) the pose-turbine blocks, ``E`` (7, 7) the turbine block,
+    ``g_p`` (N, 6) / ``g_t`` (7,) the gradient J^T r. Blocks of held variables are zero.
+    """
+
+    cost: float
+    terms: dict[str, float]
+    D: FloatArray | None = None
+    B: FloatArray | None = None
+    C: FloatArray | None = None
+    E: FloatArray | None = None
+    g_p: FloatArray | None = None
+    g_t: FloatArray | None = None
+    num_residuals: int = 0
+    in_view: dict[str, int] = field(default_factory=dict)
+
+
+class FitProblem:
+    """The least-squares problem of one flight under one :class:`FitConfig`.
+
+    Args:
+        flight: the data (camera, heat-maps, initial poses, measurements).
+        config: the fit options.
+        keyframes: indices into the flight's keyframes to use (default: all), in time order;
+            consecutive ones are linked by pairwise edges.
+    """
+
+    def __init__(self, flight: Flight, config: FitConfig,
+                 keyframes: NDArray[np.int_] | None = None) -> None:
+        self.flight = flight
+        self.config = config
+        self.keyframes = (np.arange(flight.num_keyframes) if keyframes is None
+                          else np.asarray(keyframes, dtype=np.int64))
+        self.num_keyframes = int(self.keyframes.size)
+        meas = flight.measurement_poses()[self.keyframes]
+        self.measured_rel = relative_poses(meas[:-1], meas[1:])
+        if config.pair_information is not None:
+            C = np.asarray(config.pair_information, dtype=np.float64).reshape(6, 6)
+            C = 0.5 * (C + C.T)
+            try:
+                L = np.linalg.cholesky(C).T  # C = L^T L
+            except np.linalg.LinAlgError as exc:
+                raise ValueError("pair_information must be positive definite") from exc
+        else:
+            L = np.diag([1.0 / config.pair_sigma_t] * 3
+                        + [1.0 / math.radians(config.pair_sigma_r_deg)] * 3)
+        self.sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(L, np.float64)
+        self.prior_position = flight.world_T_cam.translation[self.keyframes].copy()
+        n = config.samples_per_line
+        self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
+        self._line_index = np.repeat(np.arange(len(LINES)), n)
+        self.loss = RobustLoss(config.robust, config.robust_scale)
+        self.fixed = np.zeros(self.num_keyframes, dtype=bool)
+        if config.mode == "turbine":
+            self.fixed[:] = True
+        elif config.gauge == "first":
+            self.fixed[0] = True
+        self.optimise_theta = config.mode in ("joint", "turbine")
+
+    # ------------------------------------------------------------------------------
+    def model(self, theta: FloatArray, with_jacobian: bool
+              ) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray | None]:
+        """Model points (6, 3) and line samples (5n, 3), with Jacobians w.r.t. theta."""
+        P, JP = model_points(theta, self.config.geometry, with_jacobian)
+        S, JS, _ = line_samples(P, JP, self.config.samples_per_line)
+        return P, JP, S, JS
+
+    def _line_dirs(self, P: FloatArray) -> FloatArray:
+        """Unit world direction (5n, 3) of the model line each line sample lies on."""
+        ends = np.array([[ln[0], ln[1]] for ln in LINES])
+        d = P[ends[:, 1]] - P[ends[:, 0]]
+        d /= np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        return d[self._line_index]
+
+    def find_correspondences(self, poses: SE3, theta: FloatArray) -> Correspondences:
+        """Search the heat-maps around the current projections (corr terms only)."""
+        cfg = self.config
+        cam = self.flight.camera
+        P, _, S, _ = self.model(theta, False)
+        out = Correspondences()
+        if cfg.points == "corr":
+            pr = project_points(cam, poses, P, None, with_jacobian=False)
+            out.point_target, out.point_found = find_point_correspondences(
+                self.flight.heatmaps, self.keyframes, POINT_CHANNELS, pr.uv, pr.inside,
+                cfg.corr_radius, cfg.corr_threshold)
+        if cfg.lines == "corr":
+            pr = project_points(cam, poses, S, None, with_jacobian=False)
+            pr2 = project_points(cam, poses, S + self._line_dirs(P), None, with_jacobian=False)
+            tangent = pr2.uv - pr.uv
+            norm = np.linalg.norm(tangent, axis=-1, keepdims=True)
+            usable = pr.inside & pr2.front & (norm[..., 0] > 1e-6)
+            tangent = tangent / np.maximum(norm, 1e-9)
+            normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
+            out.line_target, out.line_found = find_line_correspondences(
+                self.flight.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
+                usable, cfg.line_search, cfg.corr_threshold)
+        return out
+
+    # ------------------------------------------------------------------------------
+    def _image_block(self, kind: str, pts: FloatArray, Jpts: FloatArray | None,
+                     world_dir: FloatArray | None, channels: NDArray[np.int_], lam: float,
+                     poses: SE3,
+                     target: FloatArray | None, found: NDArray[np.bool_] | None,
+                     with_jacobian: bool) -> tuple[FloatArray, FloatArray | None, float, int]:
+        """Robustified residual rows (N, R) and Jacobians (N, R, 13) of one image term."""
+        cfg = self.config
+        pr = project_points(self.flight.camera, poses, pts, Jpts, with_jacobian,
+                            world_dir=world_dir if kind == "interp" else None)
+        sw = math.sqrt(lam)
+        J: FloatArray | None
+        if kind == "interp" and with_jacobian:
+            s, r, J = heatmap_model(self.flight.heatmaps, self.keyframes, channels, pr, lam,
+                                    cfg.border_margin, 1.0 / cfg.heatmap_sigma**2)
+            n_in = int(pr.inside.sum())
+        elif kind == "interp":
+            r, J = heatmap_residuals(self.flight.heatmaps, self.keyframes, channels, pr, sw,
+                                     cfg.border_margin)
+            s = r * r
+            n_in = int(pr.inside.sum())
+        else:
+            assert target is not None and found is not None
+            use = found & pr.front
+            r3 = (sw / cfg.pixel_sigma) * (pr.uv - target) * use[..., None]
+            s = np.sum(r3 * r3, axis=-1)
+            r = r3
+            J = None
+            if with_jacobian and pr.J is not None:
+                J = (sw / cfg.pixel_sigma) * pr.J * use[..., None, None]
+            n_in = int(use.sum())
+        rho, drho = self.loss.evaluate(s)
+        cost = 0.5 * float(rho.sum())
+        if self.loss.name != "none":
+            scale = np.sqrt(drho)
+            r = r * (scale[..., None] if r.ndim == 3 else scale)
+            if J is not None:
+                J = J * (scale[..., None, None] if J.ndim == 4 else scale[..., None])
+        N = poses.batch_shape[0]
+        r = r.reshape(N, -1)
+        if J is not None:
+            J = J.reshape(N, -1, 13)
+        return r, J, cost, n_in
+
+    def linearize(self, poses: SE3, theta: FloatArray, corr: Correspondences,
+                  with_jacobian: bool = True) -> Linearization:
+        """Cost, and normal equations if ``with_jacobian``, at ``(poses, theta)``."""
+        cfg = self.config
+        P, JP, S, JS = self.model(theta, with_jacobian)
+        terms: dict[str, float] = {}
+        in_view: dict[str, int] = {}
+        rows: list[FloatArray] = []
+        jacs: list[FloatArray] = []
+        blocks = (
+            ("points", cfg.points, P, JP, None, POINT_CHANNELS, cfg.lambda_points,
+             corr.point_target, corr.point_found),
+            ("lines", cfg.lines, S, JS, self._line_dirs(P), self._line_channels,
+             cfg.lambda_lines, corr.line_target, corr.line_found),
+        )
+        for name, kind, pts, Jpts, dirs, ch, lam, tgt, fnd in blocks:
+            if kind == "none" or lam == 0.0:
+                continue
+            r, J, c, n_in = self._image_block(kind, pts, Jpts, dirs, ch, lam, poses, tgt, fnd,
+                                              with_jacobian)
+            terms[name] = c
+            in_view[name] = n_in
+            rows.append(r)
+            if J is not None:
+                jacs.append(J)
+        N = self.num_keyframes
+        want_pair = N > 1 and cfg.lambda_pair > 0
+        if want_pair:
+            rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self.measured_rel,
+                                            self.sqrt_info, with_jacobian)
+            terms["pairwise"] = 0.5 * float(np.sum(rp * rp))
+        use_prior = cfg.gauge == "gps" and cfg.mode != "turbine"
+        if use_prior:
+            rg = (poses.translation - self.prior_position) / cfg.gps_sigma
+            terms["prior"] = 0.5 * float(np.sum(rg * rg))
+        cost = float(sum(terms.values()))
+        n_res = sum(r.size for r in rows) + (6 * (N - 1) if want_pair else 0)
+        lin = Linearization(cost=cost, terms=terms, num_residuals=n_res, in_view=in_view)
+        if not with_jacobian:
+            return lin
+
+        r_u = np.concatenate(rows, axis=1)
+        J_u = np.concatenate(jacs, axis=1)
+        JtJ = np.matmul(np.swapaxes(J_u, 1, 2), J_u)  # (N, 13, 13)
+        g_u = np.einsum("nrp,nr->np", J_u, r_u)
+        D = JtJ[:, :6, :6].copy()
+        g_p = g_u[:, :6].copy()
+        B = np.zeros((max(N - 1, 0), 6, 6))
+        if want_pair:
+            assert Ji is not None and Jj is not None
+            JiT = np.swapaxes(Ji, 1, 2)
+            JjT = np.swapaxes(Jj, 1, 2)
+            D[:-1] += JiT @ Ji
+            D[1:] += JjT @ Jj
+            B = JjT @ Ji
+            g_p[:-1] += np.einsum("eij,ei->ej", Ji, rp)
+            g_p[1:] += np.einsum("eij,ei->ej", Jj, rp)
+        if use_prior:
+            D[:, [0, 1, 2], [0, 1, 2]] += 1.0 / cfg.gps_sigma**2
+            g_p[:, :3] += rg / cfg.gps_sigma
+        # hold fixed poses: identity blocks, no coupling, no gradient
+        fx = self.fixed
+        if fx.any():
+            D[fx] = np.eye(6)
+            g_p[fx] = 0.0
+            if N > 1:
+                B[fx[1:]] = 0.0
+                B[fx[:-1]] = 0.0
+        lin.D, lin.B, lin.g_p = D, B, g_p
+        if self.optimise_theta:
+            C = JtJ[:, :6, 6:].copy()
+            C[fx] = 0.0
+            lin.C = C
+            lin.E = JtJ[:, 6:, 6:].sum(axis=0)
+            lin.g_t = g_u[:, 6:].sum(axis=0)
+        return lin

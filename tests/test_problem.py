@@ -1,0 +1,97 @@
+"""The assembled problem: gradient and normal equations against finite differences of the
+total cost, in every mode and unary configuration, and the structured linear solve."""
+
+import numpy as np
+import pytest
+from helpers import CAMERA, orbit_poses, smooth_heatmaps
+
+from turbinefit.flight import Flight
+from turbinefit.heatmaps import HeatmapStack
+from turbinefit.solver.config import FitConfig
+from turbinefit.solver.linalg import solve_arrow
+from turbinefit.solver.problem import FitProblem
+from turbinefit.turbine.model import TurbineParams
+
+N = 4
+
+
+def make_flight() -> Flight:
+    poses = orbit_poses(N)
+    rng = np.random.default_rng(0)
+    meas = poses.retract(rng.normal(scale=0.05, size=(N, 6)))
+    return Flight(
+        camera=CAMERA, timestamps=np.arange(N, dtype=float), world_T_cam=poses,
+        heatmaps=HeatmapStack(smooth_heatmaps(N, seed=11)),
+        turbine=TurbineParams(0.0, 0.0, 80.0, 0.6, 5.0, 0.3, 50.0), odometry=meas)
+
+
+@pytest.mark.parametrize("points,lines,mode,robust,gauge", [
+    ("interp", "interp", "joint", "none", "first"),
+    ("corr", "corr", "joint", "huber", "gps"),
+    ("corr", "interp", "pose", "cauchy", "first"),
+    ("interp", "corr", "turbine", "none", "first"),
+])
+def test_gradient_matches_finite_differences(points, lines, mode, robust, gauge):
+    flight = make_flight()
+    cfg = FitConfig(points=points, lines=lines, mode=mode, robust=robust, gauge=gauge,
+                    samples_per_line=5, robust_scale=0.5, corr_threshold=0.05)
+    prob = FitProblem(flight, cfg)
+    poses = flight.world_T_cam
+    theta = flight.turbine.to_vector()
+    corr = prob.find_correspondences(poses, theta)
+    lin = prob.linearize(poses, theta, corr)
+    assert lin.g_p is not None
+    eps = 1e-6
+
+    def cost(p, t):
+        return prob.linearize(p, t, corr, with_jacobian=False).cost
+
+    for k in range(N):
+        for i in range(6):
+            d = np.zeros((N, 6))
+            d[k, i] = eps
+            num = (cost(poses.retract(d), theta) - cost(poses.retract(-d), theta)) / (2 * eps)
+            expected = 0.0 if prob.fixed[k] else num
+            assert lin.g_p[k, i] == pytest.approx(expected, rel=1e-4, abs=1e-4 * (1 + abs(num)))
+    if mode == "pose":
+        assert lin.g_t is None and lin.C is None
+        return
+    assert lin.g_t is not None
+    for i in range(7):
+        t = np.zeros(7)
+        t[i] = eps
+        num = (cost(poses, theta + t) - cost(poses, theta - t)) / (2 * eps)
+        assert lin.g_t[i] == pytest.approx(num, rel=1e-4, abs=1e-4 * (1 + abs(num)))
+
+
+def test_gauge_holds_first_pose():
+    prob = FitProblem(make_flight(), FitConfig())
+    assert prob.fixed.tolist() == [True, False, False, False]
+    assert FitProblem(make_flight(), FitConfig(gauge="gps")).fixed.sum() == 0
+    assert FitProblem(make_flight(), FitConfig(mode="turbine")).fixed.all()
+
+
+@pytest.mark.parametrize("n", [2, 3, 7, 16, 33])
+def test_structured_solve_matches_dense(n):
+    rng = np.random.default_rng(n)
+    J = rng.normal(size=(12 * n, 6 * n + 7))
+    # impose the arrow sparsity: each row touches two consecutive poses and theta
+    for r in range(12 * n):
+        k = r % max(n - 1, 1)
+        mask = np.zeros(6 * n + 7, bool)
+        mask[6 * k: 6 * k + 12] = True
+        mask[6 * n:] = True
+        J[r, ~mask] = 0
+    H = J.T @ J + 0.1 * np.eye(6 * n + 7)
+    g = rng.normal(size=6 * n + 7)
+    D = np.stack([H[6 * k:6 * k + 6, 6 * k:6 * k + 6] for k in range(n)])
+    B = np.stack([H[6 * k + 6:6 * k + 12, 6 * k:6 * k + 6] for k in range(n - 1)])
+    C = np.stack([H[6 * k:6 * k + 6, 6 * n:] for k in range(n)])
+    E = H[6 * n:, 6 * n:]
+    dp, dt = solve_arrow(D, B, C, E, g[:6 * n].reshape(n, 6), g[6 * n:])
+    ref = np.linalg.solve(H, -g)
+    np.testing.assert_allclose(np.r_[dp.ravel(), dt], ref, rtol=1e-8, atol=1e-10)
+    dp2, none = solve_arrow(D, B, None, None, g[:6 * n].reshape(n, 6), None)
+    assert none is None
+    np.testing.assert_allclose(dp2.ravel(), np.linalg.solve(H[:6 * n, :6 * n], -g[:6 * n]),
+                               rtol=1e-8, atol=1e-10)
