@@ -147,9 +147,11 @@ def test_heatmap_residual_limits():
     pts, J_theta, _ = _model(THETA)
     pr = project_points(CAMERA, poses, pts, J_theta)
     ch = np.zeros(pts.shape[0], dtype=int)
-    for fill, expect in ((0.0, -math.log(G_MIN)), (1.0, 0.0)):
+    cases = [(floor, fill) for floor in (G_MIN, 0.05) for fill in (0.0, 1.0)]
+    for floor, fill in cases:
+        expect = math.log1p(floor) - math.log(floor) if fill == 0.0 else 0.0
         st = HeatmapStack(np.full((1, 7, 240, 320), fill, np.float32))
-        r, J = heatmap_residuals(st, np.array([0]), ch, pr, 1.0, 0.0)
+        r, J = heatmap_residuals(st, np.array([0]), ch, pr, 1.0, 0.0, floor)
         ins = pr.inside[0]
         np.testing.assert_allclose(r[0, ins] ** 2, expect + 1e-6, rtol=1e-9)
         assert np.all(np.isfinite(J)) and np.abs(J).max() < 1e-9

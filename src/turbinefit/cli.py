@@ -62,11 +62,13 @@ def build_parser() -> argparse.ArgumentParser:
         "poses and turbine, heat-maps as a CNN would give them, drifting GPS/IMU poses and a "
         "noisy initial turbine. Writes a flight folder (see `turbinefit --help`).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    s.add_argument("out_dir", metavar="OUT_DIR", type=Path, help="flight folder to create")
+    s.add_argument("out_dir", metavar="OUT_DIR", type=Path, nargs="?",
+                   help="flight folder to create")
     s.add_argument("--keyframes", type=_positive_int, default=200, help="number of keyframes")
     s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same flight)")
     s.add_argument("--preset", default="default",
-                   help="simulation preset (see --list-presets)")
+                   help="simulation preset: default, noiseless, exact, hard, distorted "
+                   "(see --list-presets)")
     s.add_argument("--turbine", default=None,
                    help="turbine preset name, or 'random' (default: the preset's)")
     s.add_argument("--width", type=_positive_int, default=None, help="heat-map width [px]")
@@ -224,13 +226,62 @@ def _deg(x: float) -> float:
     return math.degrees(x)
 
 
+def _sim_config(args: argparse.Namespace) -> Any:
+    import dataclasses
+    import math
+
+    from turbinefit.errors import InputError
+    from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
+    from turbinefit.sim.render import HeatmapNoise
+    from turbinefit.sim.scenario import PRESETS
+
+    if args.preset not in PRESETS:
+        raise InputError(f"unknown preset {args.preset!r} (choose from {', '.join(PRESETS)})",
+                         field="--preset")
+    base = PRESETS[args.preset]
+    over: dict[str, Any] = {"n_keyframes": args.keyframes, "seed": args.seed}
+    for name, key in (("width", "width"), ("height", "height"), ("drift_m", "drift_pos_m"),
+                      ("drift_deg", "drift_rot_deg"), ("turbine", "turbine")):
+        if getattr(args, name) is not None:
+            over[key] = getattr(args, name)
+    if args.turbine_noise is not None:
+        over["turbine_sigma"] = tuple(args.turbine_noise * s for s in DEFAULT_TURBINE_SIGMA)
+    if args.heatmap_noise is not None:
+        over["heatmap_noise"] = dataclasses.replace(base.heatmap_noise,
+                                                    pixel_sigma=args.heatmap_noise)
+    if args.second_turbine:
+        over["second_turbine"] = True
+    for key in ("drift_pos_m", "drift_rot_deg"):
+        if key in over and not (math.isfinite(over[key]) and over[key] >= 0):
+            raise InputError(f"must be a non-negative number, got {over[key]}", field=key)
+    try:
+        cfg = dataclasses.replace(base, **over)
+        HeatmapNoise(**dataclasses.asdict(cfg.heatmap_noise))
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc), field="simulate options") from None
+    return cfg
+
+
+def _sim_presets_text() -> str:
+    from turbinefit.sim.scenario import PRESETS
+    from turbinefit.sim.turbines import PRESETS as TURBINES
+
+    lines = ["simulation presets: " + ", ".join(PRESETS),
+             "turbine presets:    " + ", ".join([*TURBINES, "random"])]
+    return "\n".join(lines)
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from turbinefit.pipeline_sim import sim_config_from_args, sim_presets_text, simulate_folder
+    from turbinefit.pipeline import simulate_folder
 
     if args.list_presets:
-        print(sim_presets_text())
+        print(_sim_presets_text())
         return 0
-    cfg = sim_config_from_args(args)
+    if args.out_dir is None:
+        from turbinefit.errors import InputError
+
+        raise InputError("OUT_DIR is required", field="simulate")
+    cfg = _sim_config(args)
     out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet)
     if not args.quiet:
         print(f"wrote {cfg.n_keyframes} keyframes to {out}")

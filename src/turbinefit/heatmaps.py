@@ -68,6 +68,8 @@ class HeatmapStack:
                     raise ValueError(f"heat-map {k} has shape {m.shape}, expected (7, H, W)")
             self.num_keyframes = len(self._list)
             self.height, self.width = int(shape[1]), int(shape[2])
+        # flat views (no copies for C-contiguous arrays) used by gather()
+        self._flat = [m.reshape(-1) for m in self._list]
 
     def __len__(self) -> int:
         return self.num_keyframes
@@ -101,8 +103,11 @@ class HeatmapStack:
             out = flat[keyframes.reshape(shape).astype(np.int64) * plane + flat_index]
         else:
             out = np.empty(flat_index.shape, dtype=np.float32)
-            for row, k in enumerate(keyframes):
-                out[row] = self._list[int(k)].reshape(-1)[flat_index[row]]
+            flats = self._flat
+            idx = flat_index.reshape(flat_index.shape[0], -1)
+            o = out.reshape(idx.shape)
+            for row, k in enumerate(keyframes.tolist()):
+                np.take(flats[k], idx[row], out=o[row])
         vals = out.astype(np.float64)
         if not np.all(np.isfinite(vals)):
             bad = np.nonzero(~np.isfinite(vals).reshape(vals.shape[0], -1).all(axis=1))[0][0]

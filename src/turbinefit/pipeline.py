@@ -206,3 +206,39 @@ def write_plots(out: Path, flight: Flight, result: FitResult) -> None:
     if result.history:
         plots.plot_cost_history(out / "cost.png",
                                 [result.initial_cost] + [h.cost for h in result.history])
+
+
+def simulate_folder(
+    out_dir: str | os.PathLike[str],
+    config: Any = None,
+    *,
+    overwrite: bool = False,
+    progress: bool = False,
+) -> Path:
+    """Simulate a flight (:func:`turbinefit.sim.simulate_flight`) and write it as a flight
+    folder with ground truth; the resolved simulation settings go to ``simulation.yaml``."""
+    import dataclasses
+
+    from turbinefit.io.flight_folder import write_flight
+    from turbinefit.sim.scenario import SimConfig, simulate_flight
+
+    cfg = config or SimConfig()
+    out = Path(out_dir)
+    if out.exists() and not overwrite and any(out.iterdir()):
+        raise InputError("output folder exists and is not empty (use --overwrite)", out)
+    flight = simulate_flight(cfg, progress=progress)
+    write_flight(flight, out, overwrite=overwrite)
+    settings = {"turbinefit_version": __version__, **_plain(dataclasses.asdict(cfg))}
+    from turbinefit.io.atomic import write_text_atomic
+
+    write_text_atomic(out / "simulation.yaml", yaml.safe_dump(settings, sort_keys=False))
+    return out
+
+
+def _plain(obj: Any) -> Any:
+    """Tuples to lists, recursively (for YAML)."""
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_plain(v) for v in obj]
+    return obj

@@ -56,16 +56,21 @@ def interpolate(
         values: (N, M); gradient: (N, M, 2) d value / d (u, v), or None.
     """
     H, W = heatmaps.height, heatmaps.width
-    u = np.clip(uv[..., 0], -1.0, W)
-    v = np.clip(uv[..., 1], -1.0, H)
+    u = np.minimum(np.maximum(uv[..., 0], -1.0), float(W))
+    v = np.minimum(np.maximum(uv[..., 1], -1.0), float(H))
     u0 = np.floor(u)
     v0 = np.floor(v)
     wu, dwu = _weights(u - u0)
     wv, dwv = _weights(v - v0)
-    cols = np.clip(u0.astype(np.int64)[..., None] + _TAPS, 0, W - 1)  # (N, M, 4)
-    rows = np.clip(v0.astype(np.int64)[..., None] + _TAPS, 0, H - 1)
-    base = (channels.astype(np.int64) * (H * W))[None, :, None, None]
-    flat = base + rows[..., :, None] * W + cols[..., None, :]  # (N, M, 4, 4)
+    cols = u0.astype(np.int64)[..., None] + _TAPS  # (N, M, 4)
+    np.maximum(cols, 0, out=cols)
+    np.minimum(cols, W - 1, out=cols)
+    rows = v0.astype(np.int64)[..., None] + _TAPS
+    np.maximum(rows, 0, out=rows)
+    np.minimum(rows, H - 1, out=rows)
+    rows *= W
+    rows += (channels.astype(np.int64) * (H * W))[None, :, None]
+    flat = rows[..., :, None] + cols[..., None, :]  # (N, M, 4, 4)
     P = heatmaps.gather(keyframes, flat)
     Pu = np.einsum("nmij,nmj->nmi", P, wu)  # interpolate along u for each of 4 rows
     val = np.einsum("nmi,nmi->nm", Pu, wv)

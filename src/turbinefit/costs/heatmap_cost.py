@@ -3,12 +3,19 @@ heat-map under each projected model point.
 
 Residual (documented choice; method notes ask for a well-behaved one)::
 
-    r = sqrt(lambda) * w(uv) * sqrt(C + rho),   rho = -log(clamp(G, G_MIN, 1))
+    r = sqrt(lambda) * w(uv) * sqrt(C + rho),   rho = -log((clamp(G, 0, 1) + eps) / (1 + eps))
 
-``1/2 r^2 = 1/2 lambda w^2 (C + rho)`` has the same minimiser as the paper's ``-log G``
-(C is a constant), but unlike ``sqrt(rho)`` its derivative stays bounded as G -> 1
-(``|dr/dG| <= 1 / (2 sqrt(C))``), and the clamp makes ``G -> 0`` (an empty heat-map) cost
-the finite ``-log G_MIN`` with zero gradient instead of infinity.
+``1/2 r^2 = 1/2 lambda w^2 (C + rho)``: C is a constant, so with ``eps -> 0`` this has the
+paper's minimiser (``-log G``), but unlike ``sqrt(rho)`` its derivative stays bounded as
+G -> 1 (``|dr/dG| <= 1 / (2 sqrt(C))``), ``rho(1) = 0``, and G -> 0 (an empty heat-map)
+costs the finite ``-log(eps / (1 + eps))`` instead of infinity.
+
+``eps`` (the ``heatmap_floor`` option) reads the heat-map as a mixture of the CNN's
+response and a uniform background of weight eps. It is what keeps the cost usable on real
+heat-maps: with a tiny floor (the bare -log, or a clamp at 1e-4) low-level background
+noise of a few percent turns into large random cost and gradient everywhere off the
+structure (-log 0.02 vs -log 0.0001), which stalls the solver; with eps = 0.05 such noise
+barely changes the cost. Off the structure the cost is then nearly flat.
 
 ``w(uv)`` treats points outside the image or behind the camera as *no evidence*: it is 1
 inside the image, falls smoothly (smoothstep) to 0 over ``margin`` pixels at the border, and
@@ -27,8 +34,10 @@ from turbinefit.heatmaps import HeatmapStack
 
 FloatArray = NDArray[np.float64]
 
-#: Heat-map values are clamped to [G_MIN, 1] before the log (-log G_MIN ~ 9.2).
+#: Smallest allowed heat-map floor eps (-log 1e-4 ~ 9.2).
 G_MIN = 1e-4
+#: Default heat-map floor eps.
+DEFAULT_FLOOR = 0.05
 #: Constant added under the square root (keeps dr/dG bounded at G = 1).
 RHO_OFFSET = 1e-6
 
@@ -61,6 +70,7 @@ def heatmap_residuals(
     proj: Projection,
     sqrt_weight: float,
     margin: float,
+    floor: float = DEFAULT_FLOOR,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Residuals (N, M) and their Jacobians (N, M, 13) of the heat-map cost.
 
@@ -70,8 +80,9 @@ def heatmap_residuals(
         proj: the points' projection (with Jacobian if one is wanted).
         sqrt_weight: sqrt(lambda) of this term.
         margin: border fade width [px].
+        floor: the heat-map floor eps (see the module docstring).
     """
-    ev = _evaluate(heatmaps, keyframes, channels, proj, margin)
+    ev = _evaluate(heatmaps, keyframes, channels, proj, margin, floor)
     r = sqrt_weight * ev.w * ev.root
     if proj.J is None:
         return r, None
@@ -98,16 +109,17 @@ class _Eval:
 
 
 def _evaluate(heatmaps: HeatmapStack, keyframes: NDArray[np.int_], channels: NDArray[np.int_],
-              proj: Projection, margin: float) -> _Eval:
+              proj: Projection, margin: float, floor: float) -> _Eval:
     w, dw = border_weight(proj.uv, heatmaps.width, heatmaps.height, margin)
     w = np.where(proj.front, w, 0.0)
     dw = np.where(proj.front[..., None], dw, 0.0)
     G, dG = interpolate(heatmaps, keyframes, channels, proj.uv, with_gradient=True)
     assert dG is not None
-    Gc = np.clip(G, G_MIN, 1.0)
-    rho = -np.log(Gc)
-    clamped = (G <= G_MIN) | (G >= 1.0)
-    drho_dG = np.where(clamped, 0.0, -1.0 / Gc)
+    eps = max(floor, G_MIN)
+    Gc = np.minimum(np.maximum(G, 0.0), 1.0)
+    rho = np.log1p(eps) - np.log(Gc + eps)
+    clamped = (G <= 0.0) | (G >= 1.0)
+    drho_dG = np.where(clamped, 0.0, -1.0 / (Gc + eps))
     return _Eval(G=G, dG=dG, drho_dG=drho_dG, dw=dw, rho=rho, root=np.sqrt(RHO_OFFSET + rho), w=w)
 
 
@@ -119,6 +131,7 @@ def heatmap_model(
     weight: float,
     margin: float,
     curvature: float,
+    floor: float = DEFAULT_FLOOR,
     along: float = 0.25,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The heat-map cost with a curvature-aware Gauss-Newton model.
@@ -136,7 +149,8 @@ def heatmap_model(
         H_uv = lambda [(C + rho) grad(w) grad(w)^T + 1/2 w^2 curvature P],
         P = n n^T + along t t^T (lines, tangent t, normal n), I (points)
 
-    (``P`` is dropped where the heat-map is below ``G_MIN``: no evidence, no stiffness).
+    (``P`` is scaled by ``G / (G + eps)``: where the heat-map is at the floor there is no
+    evidence and no stiffness; on a ridge this is the curvature of ``-log(G + eps)``).
     The model is returned as two rows per point, ``rows = L^-1 g_uv`` and
     ``J_rows = L^T J_uv`` with ``H_uv = L L^T``, so that ``J_rows^T rows`` is the exact
     gradient and ``J_rows^T J_rows`` the model Hessian. Only the step depends on this
@@ -146,13 +160,14 @@ def heatmap_model(
         s: (N, M) squared residuals (cost ``1/2 s``); rows: (N, M, 2); J_rows: (N, M, 2, 13).
     """
     assert proj.J is not None
-    ev = _evaluate(heatmaps, keyframes, channels, proj, margin)
+    ev = _evaluate(heatmaps, keyframes, channels, proj, margin, floor)
     c_rho = RHO_OFFSET + ev.rho
     s = weight * ev.w * ev.w * c_rho
     grad_rho = ev.drho_dG[..., None] * ev.dG
     g = weight * (ev.w[..., None] * ev.dw * c_rho[..., None]
                   + 0.5 * (ev.w * ev.w)[..., None] * grad_rho)
-    k = 0.5 * weight * ev.w * ev.w * curvature * (ev.G > G_MIN)
+    Gc = np.minimum(np.maximum(ev.G, 0.0), 1.0)
+    k = 0.5 * weight * ev.w * ev.w * curvature * Gc / (Gc + max(floor, G_MIN))
     if proj.tangent is not None:
         t = proj.tangent
         nrm = np.stack([-t[..., 1], t[..., 0]], axis=-1)

@@ -7,7 +7,8 @@ With poses ``world_T_cam`` = (R, t) (camera-to-world, quaternion q)::
     r    = sqrt(lambda) * L e,   C = L^T L
 
 ``C`` is the information matrix (1/m^2 on translation, 1/rad^2 on rotation); the default
-is diagonal, ``diag(1/sigma_t^2 I3, 1/sigma_r^2 I3)``. The quaternion ``q^_ij * q_ij^-1`` is
+is diagonal, ``diag(1/sigma_t^2 I3, 1/sigma_r^2 I3)``, with sigma_t growing with the
+length of the measured step (see ``FitConfig.pair_sigma_t_per_m``). The quaternion ``q^_ij * q_ij^-1`` is
 taken with a non-negative scalar part. Jacobians are w.r.t. the local update of
 :meth:`turbinefit.geometry.se3.SE3.retract` of each pose.
 """
@@ -31,14 +32,18 @@ def pairwise_residuals(
     world_T_i: SE3, world_T_j: SE3, measured_i_T_j: SE3, sqrt_info: FloatArray,
     with_jacobian: bool = True,
 ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
-    """Residuals (E, 6) and Jacobians (E, 6, 6) w.r.t. the local updates of pose i and j."""
+    """Residuals (E, 6) and Jacobians (E, 6, 6) w.r.t. the local updates of pose i and j.
+
+    ``sqrt_info`` is L (6, 6), shared, or one per edge (E, 6, 6)."""
     Ri = world_T_i.rotation_matrix()
     t_ij = np.einsum("eji,ej->ei", Ri, world_T_j.translation - world_T_i.translation)
     q_ij = quat_multiply(quat_conjugate(world_T_i.wxyz), world_T_j.wxyz)
     e_q = quat_multiply(measured_i_T_j.wxyz, quat_conjugate(q_ij))
     e_q = np.where(e_q[..., :1] < 0.0, -e_q, e_q)
     e = np.concatenate([measured_i_T_j.translation - t_ij, 2.0 * e_q[..., 1:]], axis=-1)
-    r = e @ sqrt_info.T
+    if sqrt_info.ndim == 2:
+        sqrt_info = np.broadcast_to(sqrt_info, (e.shape[0], 6, 6))
+    r = np.einsum("eij,ej->ei", sqrt_info, e)
     if not with_jacobian:
         return r, None, None
     E = e.shape[0]

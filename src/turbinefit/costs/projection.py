@@ -54,13 +54,15 @@ def project_points(
     with_jacobian: bool = True,
     world_dir: FloatArray | None = None,
 ) -> Projection:
-    """Project world points (M, 3) (Jacobian (M, 3, 7)) into every keyframe of ``world_T_cam``.
+    """Project world points (M, 3) (Jacobian (M, 3, 7)) into every keyframe of ``world_T_cam``;
+    per-keyframe points (N, M, 3) (Jacobian (N, M, 3, 7)) are accepted too.
 
     If ``world_dir`` (M, 3) is given (and ``with_jacobian``), also returns the unit image
     tangent of each point's direction (e.g. the model line it samples)."""
     R = world_T_cam.rotation_matrix()  # (N, 3, 3)
     t = world_T_cam.translation  # (N, 3)
-    cam_p = (world_p[None, :, :] - t[:, None, :]) @ R  # row-vector form of R^T (p - t)
+    wp = world_p if world_p.ndim == 3 else world_p[None, :, :]
+    cam_p = (wp - t[:, None, :]) @ R  # row-vector form of R^T (p - t)
     uv, front, Juv = camera.project_unbounded(cam_p, with_jacobian=with_jacobian)
     inside = front & camera.in_image(uv)
     J = None
@@ -72,7 +74,7 @@ def project_points(
         J[..., 0:3] = -A
         J[..., 3:6] = np.cross(Juv, cam_p[:, :, None, :])
         if J_theta is not None:
-            J[..., 6:13] = A @ J_theta[None]
+            J[..., 6:13] = A @ (J_theta if J_theta.ndim == 4 else J_theta[None])
         else:
             J[..., 6:13] = 0.0
         if world_dir is not None:

@@ -27,6 +27,10 @@ class FitConfig:
     """Unary cost of the line samples (same choices)."""
     samples_per_line: int = 10
     """Points sampled on each of the 5 model lines (interior, evenly spaced)."""
+    line_sampling: Literal["visible", "uniform"] = "visible"
+    """visible: each keyframe spreads its samples over the part of each line in its view
+    (re-chosen every round), so close-up views of a blade or the tower keep all of them;
+    uniform: fixed fractions along the whole line (the paper's split)."""
     lambda_points: float = 1.0
     """Weight lambda_P of the point-model term."""
     lambda_lines: float = 1.0
@@ -39,6 +43,10 @@ class FitConfig:
     """Default information matrix: std. dev. of a relative translation [m] per axis."""
     pair_sigma_r_deg: float = 0.1
     """Default information matrix: std. dev. of a relative rotation [deg] per axis."""
+    pair_sigma_t_per_m: float = 0.02
+    """Added relative-translation std. dev. per metre of the measured step [m/m]: an
+    attitude error of the GPS/IMU rotates the whole step, so long steps are less certain
+    (sigma_t^2 = pair_sigma_t^2 + (pair_sigma_t_per_m * |step|)^2; 0 = the paper's fixed C)."""
     pair_information: tuple[float, ...] | None = None
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
@@ -48,6 +56,12 @@ class FitConfig:
     """Half-length of the perpendicular search for line correspondences [px]."""
     corr_threshold: float = 0.3
     """Minimum heat-map value accepted as a correspondence."""
+    step_model: Literal["curvature", "gauss-newton"] = "gauss-newton"
+    """Step model of the interp terms: curvature (exact gradient, Gaussian-ridge curvature;
+    see costs.heatmap_cost.heatmap_model) or gauss-newton (plain J^T J of the residual)."""
+    heatmap_floor: float = 0.05
+    """Floor eps of the interp cost -log((G + eps) / (1 + eps)): heat-map values below it
+    count as background (robustness to low-level CNN noise); >= 1e-4."""
     heatmap_sigma: float = 2.0
     """Width of heat-map peaks and ridges [px] assumed by the interp terms' step model (it
     shapes LM's steps, not the cost or its optimum)."""
@@ -61,15 +75,20 @@ class FitConfig:
     """first: hold the first keyframe's pose; gps: weak absolute position priors instead."""
     gps_sigma: float = 3.0
     """Std. dev. of the absolute position priors when gauge=gps [m]."""
+    initial_damping: float = 1e-4
+    """Initial LM damping mu (relative to diag(J^T J)); larger = shorter first steps."""
     max_iterations: int = 30
     """Levenberg-Marquardt iterations per correspondence round."""
+    stiff_first_round: float = 1000.0
+    """Pairwise weight multiplier of the first round (1 = off): the trajectory first moves
+    nearly rigidly onto the images with the turbine, then may bend (widens convergence)."""
     max_rounds: int = 6
     """Correspondence rounds (re-search after each solve) when any term is corr."""
     function_tolerance: float = 1e-3
     """Stop when the cost fell by less than this fraction over the last
-    ``stall_iterations`` iterations."""
+    ``stall_iterations`` accepted steps."""
     stall_iterations: int = 3
-    """Window of the function-tolerance test [iterations]."""
+    """Window of the function-tolerance test [accepted steps]."""
     gradient_tolerance: float = 1e-10
     """Stop when the max-norm of the gradient falls below this."""
     parameter_tolerance: float = 1e-8
@@ -90,22 +109,30 @@ class FitConfig:
             raise ValueError("points and lines cannot both be none: no image evidence")
         if self.gauge not in ("first", "gps"):
             raise bad("gauge", "must be first or gps")
+        if self.line_sampling not in ("visible", "uniform"):
+            raise bad("line_sampling", "must be visible or uniform")
+        if self.step_model not in ("curvature", "gauss-newton"):
+            raise bad("step_model", "must be curvature or gauss-newton")
         if self.robust not in ("none", "huber", "cauchy"):
             raise bad("robust", "must be none, huber or cauchy")
         if self.samples_per_line < 1:
             raise bad("samples_per_line", "must be at least 1")
         if self.max_iterations < 1 or self.max_rounds < 1 or self.stall_iterations < 1:
             raise ValueError("max_iterations, max_rounds and stall_iterations must be >= 1")
-        positive = ("pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
+        positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
                     "line_search", "robust_scale", "gps_sigma", "heatmap_sigma")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise bad(name, "must be a positive number")
-        for name in ("lambda_points", "lambda_lines", "lambda_pair", "border_margin"):
+        for name in ("lambda_points", "lambda_lines", "lambda_pair", "border_margin",
+                     "stiff_first_round",
+                     "pair_sigma_t_per_m"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise bad(name, "must be a non-negative number")
+        if not (isinstance(self.heatmap_floor, int | float) and 1e-4 <= self.heatmap_floor < 1):
+            raise bad("heatmap_floor", "must be in [1e-4, 1)")
         if not 0 < self.corr_threshold < 1:
             raise bad("corr_threshold", "must be in (0, 1)")
         if self.pair_information is not None and len(self.pair_information) != 36:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -64,7 +65,13 @@ def _corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
         both = fa & fb
         shifts.append(np.linalg.norm(ta[both] - tb[both], axis=-1))
     allshift = np.concatenate(shifts) if shifts else np.zeros(0)
-    return flips / max(total, 1), float(allshift.mean()) if allshift.size else 0.0
+    shift = float(allshift.mean()) if allshift.size else 0.0
+    if a.line_fractions is not None and b.line_fractions is not None:
+        # visible-part sampling moved: count samples that moved by > 2 % of their line
+        moved = np.abs(a.line_fractions - b.line_fractions) > 0.02
+        flips += int(moved.sum())
+        total += moved.size
+    return flips / max(total, 1), shift
 
 
 def fit(
@@ -91,7 +98,8 @@ def fit(
     kf = problem.keyframes
     poses = initial_poses if initial_poses is not None else flight.world_T_cam[kf]
     theta = (initial_turbine or flight.turbine).to_vector()
-    needs_corr = "corr" in (cfg.points, cfg.lines)
+    needs_corr = "corr" in (cfg.points, cfg.lines) or (
+        cfg.line_sampling == "visible" and cfg.lines != "none")
     corr = problem.find_correspondences(poses, theta) if needs_corr else Correspondences()
     lin = problem.linearize(poses, theta, corr)
     initial_cost, initial_terms = lin.cost, dict(lin.terms)
@@ -99,19 +107,32 @@ def fit(
     iterations = 0
     termination = "max_iterations"
     rounds = 0
-    for rounds in range(1, (cfg.max_rounds if needs_corr else 1) + 1):
-        out = levenberg_marquardt(problem, poses, theta, corr, lin, round_index=rounds,
+    stiff = None
+    if cfg.stiff_first_round > 1.0 and cfg.mode != "turbine" and problem.num_keyframes > 1:
+        # Round 1 on a stiffened pose graph: the trajectory first moves almost as a whole
+        # (with the turbine) onto the image evidence, before it may bend.
+        stiff = FitProblem(flight, dataclasses.replace(
+            cfg, lambda_pair=cfg.lambda_pair * cfg.stiff_first_round), keyframes)
+    max_rounds = cfg.max_rounds if needs_corr else (2 if stiff is not None else 1)
+    for rounds in range(1, max_rounds + 1):
+        prob = stiff if (stiff is not None and rounds == 1) else problem
+        if prob is stiff:
+            lin = prob.linearize(poses, theta, corr)
+        out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds,
                                   history=history, callback=callback)
         poses, theta, lin = out.poses, out.theta, out.linearization
         iterations += out.iterations
         termination = out.termination
         if not needs_corr:
+            if prob is stiff:
+                lin = problem.linearize(poses, theta, corr)
+                continue
             break
         new_corr = problem.find_correspondences(poses, theta)
         flips, shift = _corr_change(corr, new_corr)
         corr = new_corr
         lin = problem.linearize(poses, theta, corr)
-        if flips < 0.005 and shift < 0.25:
+        if prob is problem and flips < 0.005 and shift < 0.25:
             break
     turbine = TurbineParams.from_vector(theta).canonical()
     return FitResult(

@@ -8,7 +8,7 @@ while one vectorised evaluation plus an O(N) structured solve matches the C++ re
 Convergence: the heat-map terms make the cost slightly rugged at the sub-pixel scale, where
 LM creeps with many tiny steps that change neither cost nor accuracy; the solver therefore
 stops when the cost fell by less than ``function_tolerance`` (relative) over the last
-``stall_iterations`` iterations, accepted or not.
+``stall_iterations`` accepted steps, or after 8 rejected steps in a row.
 
 The trust-region strategy follows Ceres: damping ``mu * clip(diag(J^T J), 1e-6, 1e32)``,
 step accepted when the gain ratio exceeds 1e-3, ``mu`` scaled by
@@ -79,13 +79,14 @@ def levenberg_marquardt(
 ) -> LMOutcome:
     """Run LM from ``(poses, theta)`` whose linearisation is ``lin``, correspondences fixed."""
     cfg = problem.config
-    mu = 1e-4
+    mu = cfg.initial_damping
     nu = 2.0
     optimise_poses = not problem.fixed.all()
     termination = "max_iterations"
     it = 0
     t0 = time.perf_counter()
     costs = [lin.cost]
+    rejections = 0
     for it in range(1, cfg.max_iterations + 1):
         assert lin.D is not None and lin.B is not None and lin.g_p is not None
         g_inf = float(np.max(np.abs(lin.g_p))) if optimise_poses else 0.0
@@ -138,14 +139,18 @@ def levenberg_marquardt(
             history.append(rec)
         if callback is not None:
             callback(rec)
-        costs.append(lin.cost)
-        window = cfg.stall_iterations
-        if len(costs) > window and (
-            costs[-1 - window] - costs[-1] <= cfg.function_tolerance * max(costs[-1], 1e-300)
-        ):
-            termination = "function_tolerance"
-            break
-        if mu > 1e16:
+        if accepted:
+            rejections = 0
+            costs.append(lin.cost)
+            window = cfg.stall_iterations
+            if len(costs) > window and (
+                costs[-1 - window] - costs[-1] <= cfg.function_tolerance * max(costs[-1], 1e-300)
+            ):
+                termination = "function_tolerance"
+                break
+        else:
+            rejections += 1
+        if mu > 1e16 or rejections >= 8:
             termination = "no_progress"
             break
     return LMOutcome(poses, theta, lin, it, termination)

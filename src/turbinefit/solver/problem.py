@@ -49,6 +49,8 @@ class Correspondences:
     point_found: NDArray[np.bool_] | None = None
     line_target: FloatArray | None = None
     line_found: NDArray[np.bool_] | None = None
+    line_fractions: FloatArray | None = None
+    """(N, 5, n) where each keyframe samples each line (visible-part sampling), or None."""
 
     def count(self) -> int:
         n = 0
@@ -105,10 +107,16 @@ class FitProblem:
                 L = np.linalg.cholesky(C).T  # C = L^T L
             except np.linalg.LinAlgError as exc:
                 raise ValueError("pair_information must be positive definite") from exc
+            sqrt_info = np.broadcast_to(L, (max(self.num_keyframes - 1, 0), 6, 6))
         else:
-            L = np.diag([1.0 / config.pair_sigma_t] * 3
-                        + [1.0 / math.radians(config.pair_sigma_r_deg)] * 3)
-        self.sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(L, np.float64)
+            step = np.linalg.norm(self.measured_rel.translation, axis=-1)
+            sig_t = np.sqrt(config.pair_sigma_t**2 + (config.pair_sigma_t_per_m * step) ** 2)
+            diag = np.empty((step.size, 6))
+            diag[:, :3] = 1.0 / sig_t[:, None]
+            diag[:, 3:] = 1.0 / math.radians(config.pair_sigma_r_deg)
+            sqrt_info = diag[:, :, None] * np.eye(6)
+        #: (E, 6, 6) per-edge square-root information L (C = L^T L), times sqrt(lambda).
+        self.sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(sqrt_info)
         self.prior_position = flight.world_T_cam.translation[self.keyframes].copy()
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
@@ -122,12 +130,48 @@ class FitProblem:
         self.optimise_theta = config.mode in ("joint", "turbine")
 
     # ------------------------------------------------------------------------------
-    def model(self, theta: FloatArray, with_jacobian: bool
+    def model(self, theta: FloatArray, with_jacobian: bool,
+              fractions: FloatArray | None = None,
               ) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray | None]:
-        """Model points (6, 3) and line samples (5n, 3), with Jacobians w.r.t. theta."""
+        """Model points (6, 3) and line samples, with Jacobians w.r.t. theta.
+
+        Line samples are (5n, 3) at uniform fractions, or (N, 5n, 3) at per-keyframe
+        ``fractions`` (N, 5, n) along each line."""
         P, JP = model_points(theta, self.config.geometry, with_jacobian)
-        S, JS, _ = line_samples(P, JP, self.config.samples_per_line)
-        return P, JP, S, JS
+        if fractions is None:
+            S, JS, _ = line_samples(P, JP, self.config.samples_per_line)
+            return P, JP, S, JS
+        ends = np.array([[ln[0], ln[1]] for ln in LINES])
+        N = fractions.shape[0]
+        f = fractions.reshape(N, -1)[..., None]  # (N, 5n, 1)
+        a = ends[self._line_index, 0]
+        b = ends[self._line_index, 1]
+        S = P[a][None] * (1.0 - f) + P[b][None] * f
+        JSn = None
+        if JP is not None:
+            JSn = JP[a][None] * (1.0 - f)[..., None] + JP[b][None] * f[..., None]
+        return P, JP, S, JSn
+
+    def visible_fractions(self, poses: SE3, theta: FloatArray) -> FloatArray:
+        """Per keyframe and line, ``n`` sample fractions spread over the part of the line
+        that projects into the image (uniform over the whole line where none does)."""
+        n = self.config.samples_per_line
+        P, _ = model_points(theta, self.config.geometry, False)
+        dense = np.linspace(0.0, 1.0, 65)
+        ends = np.array([[ln[0], ln[1]] for ln in LINES])
+        pts = (P[ends[:, 0]][:, None] * (1 - dense[:, None])
+               + P[ends[:, 1]][:, None] * dense[:, None]).reshape(-1, 3)
+        pr = project_points(self.flight.camera, poses, pts, None, with_jacobian=False)
+        vis = pr.inside.reshape(-1, len(LINES), dense.size)  # (N, 5, 65)
+        any_vis = vis.any(axis=-1)
+        step = dense[1]
+        lo = np.where(any_vis, dense[np.argmax(vis, axis=-1)] - 0.5 * step, 0.0)
+        hi = np.where(any_vis, dense[dense.size - 1 - np.argmax(vis[..., ::-1], axis=-1)]
+                      + 0.5 * step, 1.0)
+        lo = np.maximum(lo, 0.0)
+        hi = np.minimum(hi, 1.0)
+        u = (np.arange(n) + 0.5) / n
+        return lo[..., None] + (hi - lo)[..., None] * u
 
     def _line_dirs(self, P: FloatArray) -> FloatArray:
         """Unit world direction (5n, 3) of the model line each line sample lies on."""
@@ -137,11 +181,14 @@ class FitProblem:
         return d[self._line_index]
 
     def find_correspondences(self, poses: SE3, theta: FloatArray) -> Correspondences:
-        """Search the heat-maps around the current projections (corr terms only)."""
+        """Per-round data at the current estimate: correspondences of the corr terms
+        (searched around the current projections) and the visible-part line sampling."""
         cfg = self.config
         cam = self.flight.camera
-        P, _, S, _ = self.model(theta, False)
         out = Correspondences()
+        if cfg.line_sampling == "visible" and cfg.lines != "none":
+            out.line_fractions = self.visible_fractions(poses, theta)
+        P, _, S, _ = self.model(theta, False, out.line_fractions)
         if cfg.points == "corr":
             pr = project_points(cam, poses, P, None, with_jacobian=False)
             out.point_target, out.point_found = find_point_correspondences(
@@ -172,13 +219,14 @@ class FitProblem:
                             world_dir=world_dir if kind == "interp" else None)
         sw = math.sqrt(lam)
         J: FloatArray | None
-        if kind == "interp" and with_jacobian:
+        if kind == "interp" and with_jacobian and cfg.step_model == "curvature":
             s, r, J = heatmap_model(self.flight.heatmaps, self.keyframes, channels, pr, lam,
-                                    cfg.border_margin, 1.0 / cfg.heatmap_sigma**2)
+                                    cfg.border_margin, 1.0 / cfg.heatmap_sigma**2,
+                                    cfg.heatmap_floor)
             n_in = int(pr.inside.sum())
         elif kind == "interp":
             r, J = heatmap_residuals(self.flight.heatmaps, self.keyframes, channels, pr, sw,
-                                     cfg.border_margin)
+                                     cfg.border_margin, cfg.heatmap_floor)
             s = r * r
             n_in = int(pr.inside.sum())
         else:
@@ -208,7 +256,7 @@ class FitProblem:
                   with_jacobian: bool = True) -> Linearization:
         """Cost, and normal equations if ``with_jacobian``, at ``(poses, theta)``."""
         cfg = self.config
-        P, JP, S, JS = self.model(theta, with_jacobian)
+        P, JP, S, JS = self.model(theta, with_jacobian, corr.line_fractions)
         terms: dict[str, float] = {}
         in_view: dict[str, int] = {}
         rows: list[FloatArray] = []

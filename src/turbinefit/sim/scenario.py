@@ -1,0 +1,196 @@
+"""A whole simulated flight: turbine, trajectory, heat-maps, drifting poses, noisy turbine.
+
+World frame: metres, z up, ground z = 0; poses ``world_T_cam`` (camera-to-world), OpenCV
+camera frame; angles in radians unless a name ends in ``_deg``.
+
+:func:`simulate_flight` follows the paper's simulation (Sec. IV-A): ground-truth poses and
+turbine, heat-maps rendered from the **ground truth**, then sequential (drifting) noise on
+the poses and Gaussian noise on the turbine parameters as the initial estimates. It is
+fully determined by :attr:`SimConfig.seed`: independent random streams are spawned from
+``np.random.SeedSequence(seed)`` for the turbine, the trajectory, the second turbine, the
+pose drift, the turbine noise and the heat-maps (one child per keyframe), so changing one
+part of the configuration does not reshuffle the others (e.g. the turbine and flight path
+do not change with the heat-map noise, and the turbine does not change with N).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from turbinefit.flight import Flight
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.heatmaps import HeatmapStack
+from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA, drift_poses, perturb_turbine
+from turbinefit.sim.render import HeatmapNoise, RenderConfig, render_flight
+from turbinefit.sim.trajectory import TrajectoryConfig, plan_inspection
+from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
+from turbinefit.sim.turbines import neighbour_turbine, preset_turbine
+from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
+
+#: Stream indices of :func:`simulate_flight`'s spawned generators.
+_STREAMS = ("turbine", "trajectory", "second_turbine", "drift", "turbine_noise", "heatmaps")
+
+#: Heat-map imperfections of the default scenario: a little of everything.
+DEFAULT_HEATMAP_NOISE = HeatmapNoise(
+    pixel_sigma=0.02, miss_prob=0.05, spurious_rate=0.3, amplitude_jitter=0.1
+)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that defines a simulated flight (see :func:`simulate_flight`).
+
+    Attributes:
+        n_keyframes: number of keyframes N (>= 1).
+        seed: random seed; the same configuration and seed give a bit-identical flight.
+        width: heat-map / image width [px].
+        height: heat-map / image height [px].
+        hfov_deg: horizontal field of view [deg]; fx = fy = (width / 2) / tan(hfov / 2)
+            (70 deg at 320 px: 228.5 px, an inspection drone's wide camera).
+        distortion: plumb_bob (k1, k2, p1, p2, k3); zeros for none.
+        turbine: a preset of :data:`turbinefit.sim.turbines.PRESETS` (heading, blade
+            rotation and base randomised) or ``"random"`` (every parameter sampled).
+        geometry: shape details beyond the paper's model, used for the ground truth
+            (default: the paper's model).
+        heatmap_sigma: blob / ridge standard deviation [px] at 320 px width; scaled with
+            ``width / 320``.
+        heatmap_noise: heat-map imperfections.
+        drift_pos_m: RMS position drift of the initial poses at the last keyframe [m].
+        drift_rot_deg: RMS orientation drift of the initial poses at the last keyframe
+            [deg].
+        turbine_sigma: standard deviation of the initial turbine's error per parameter
+            (base x, base y, tower height [m], heading [rad], nacelle [m], blade rotation
+            [rad], blade length [m]).
+        second_turbine: add a neighbouring turbine 150-400 m away, drawn into the same
+            heat-map channels (false responses); it is not part of the Flight's model.
+        trajectory: shape of the inspection flight.
+        t0: timestamp of keyframe 0 [s].
+        dt: time between keyframes [s].
+    """
+
+    n_keyframes: int = 200
+    seed: int = 0
+    width: int = 320
+    height: int = 240
+    hfov_deg: float = 70.0
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    turbine: str = "nrel5mw"
+    geometry: TurbineGeometry = PAPER_GEOMETRY
+    heatmap_sigma: float = 2.0
+    heatmap_noise: HeatmapNoise = DEFAULT_HEATMAP_NOISE
+    drift_pos_m: float = 2.0
+    drift_rot_deg: float = 2.0
+    turbine_sigma: tuple[float, ...] = DEFAULT_TURBINE_SIGMA
+    second_turbine: bool = False
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    t0: float = 0.0
+    dt: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.n_keyframes < 1:
+            raise ValueError(f"n_keyframes must be at least 1, got {self.n_keyframes}")
+        if not 1.0 < self.hfov_deg < 179.0:
+            raise ValueError(f"hfov_deg must be in (1, 179), got {self.hfov_deg}")
+        if self.turbine != "random" and self.turbine not in TURBINE_PRESETS:
+            raise ValueError(f"unknown turbine {self.turbine!r}; choose from "
+                             f"{', '.join([*TURBINE_PRESETS, 'random'])}")
+        if len(self.turbine_sigma) != 7:
+            raise ValueError("turbine_sigma needs 7 values")
+        if not self.dt > 0:
+            raise ValueError(f"dt must be positive, got {self.dt}")
+
+    def camera(self) -> PinholeCamera:
+        """The simulated camera (principal point at the image centre)."""
+        f = 0.5 * self.width / math.tan(math.radians(self.hfov_deg) / 2.0)
+        return PinholeCamera(self.width, self.height, f, f, (self.width - 1) / 2.0,
+                             (self.height - 1) / 2.0, 0.0, self.distortion)
+
+    def render_config(self) -> RenderConfig:
+        """Heat-map rendering settings (sigma scaled to the image width)."""
+        return RenderConfig(sigma_px=self.heatmap_sigma * self.width / 320.0,
+                            noise=self.heatmap_noise)
+
+
+#: Named scenarios.
+PRESETS: dict[str, SimConfig] = {
+    # realistic defaults: NREL 5 MW, modest heat-map faults, 2 m / 2 deg drift
+    "default": SimConfig(),
+    # clean heat-maps; the initial poses and turbine are still wrong
+    "noiseless": SimConfig(heatmap_noise=HeatmapNoise()),
+    # everything exact: initial estimates = ground truth, clean heat-maps
+    "exact": SimConfig(heatmap_noise=HeatmapNoise(), drift_pos_m=0.0, drift_rot_deg=0.0,
+                       turbine_sigma=(0.0,) * 7),
+    # random machine, large drift, a neighbour in view, poor heat-maps
+    "hard": SimConfig(
+        turbine="random", drift_pos_m=5.0, drift_rot_deg=5.0, second_turbine=True,
+        turbine_sigma=tuple(2.0 * s for s in DEFAULT_TURBINE_SIGMA),
+        heatmap_noise=HeatmapNoise(pixel_sigma=0.05, miss_prob=0.15, spurious_rate=2.0,
+                                   amplitude_jitter=0.2)),
+    # a lens with barrel distortion
+    "distorted": SimConfig(distortion=(-0.12, 0.03, 0.0, 0.0, 0.0)),
+}
+
+
+def preset(name: str, **overrides: object) -> SimConfig:
+    """A named scenario of :data:`PRESETS`, with fields replaced by ``overrides``."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown simulation preset {name!r}; choose from {', '.join(PRESETS)}")
+    return replace(PRESETS[name], **overrides)  # type: ignore[arg-type]
+
+
+def _place_neighbour(primary: TurbineParams, path_xy: np.ndarray,
+                     rng: np.random.Generator) -> TurbineParams:
+    """A neighbour turbine whose rotor keeps >= 30 m clear of the flight path."""
+    other = neighbour_turbine(primary, rng)
+    for _ in range(100):
+        reach = other.nacelle_length + other.blade_length + 30.0
+        d = np.hypot(path_xy[:, 0] - other.base_x, path_xy[:, 1] - other.base_y)
+        if float(d.min()) > reach:
+            return other
+        other = neighbour_turbine(primary, rng)
+    return other
+
+
+def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Flight:
+    """Simulate an inspection flight.
+
+    Returns:
+        A :class:`~turbinefit.flight.Flight` whose ``world_T_cam`` are the drifted poses
+        and ``turbine`` the perturbed turbine (the initial estimates), with
+        ``gt_world_T_cam`` / ``gt_turbine`` the truth, ``odometry=None``, timestamps
+        ``t0 + k dt`` and heat-maps rendered from the ground truth (N, 7, H, W).
+    """
+    cfg = cfg or SimConfig()
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(
+        len(_STREAMS))]
+    rng = dict(zip(_STREAMS, streams, strict=True))
+
+    gt_turbine = preset_turbine(cfg.turbine, rng["turbine"])
+    path = plan_inspection(gt_turbine, cfg.n_keyframes, rng["trajectory"], cfg.geometry,
+                           cfg.trajectory)
+    gt_poses = path.world_T_cam
+    distractors = []
+    if cfg.second_turbine:
+        other = _place_neighbour(gt_turbine, gt_poses.translation[:, :2],
+                                 rng["second_turbine"])
+        distractors.append(other.to_vector())
+
+    camera = cfg.camera()
+    maps = render_flight(camera, gt_poses, gt_turbine.to_vector(), cfg.geometry,
+                         cfg.render_config(), rng["heatmaps"], distractors, progress=progress)
+    init_poses = drift_poses(gt_poses, rng["drift"], cfg.drift_pos_m, cfg.drift_rot_deg)
+    init_turbine = perturb_turbine(gt_turbine, cfg.turbine_sigma, rng["turbine_noise"])
+    timestamps = cfg.t0 + cfg.dt * np.arange(cfg.n_keyframes, dtype=np.float64)
+    return Flight(
+        camera=camera,
+        timestamps=timestamps,
+        world_T_cam=init_poses,
+        heatmaps=HeatmapStack(maps),
+        turbine=init_turbine,
+        odometry=None,
+        gt_world_T_cam=gt_poses,
+        gt_turbine=gt_turbine,
+    )
