@@ -77,13 +77,15 @@ class FitConfig:
     """Std. dev. of the absolute position priors when gauge=gps [m]."""
     initial_damping: float = 1e-4
     """Initial LM damping mu (relative to diag(J^T J)); larger = shorter first steps."""
-    max_iterations: int = 30
-    """Levenberg-Marquardt iterations per correspondence round."""
     stiff_first_round: float = 1000.0
     """Pairwise weight multiplier of the first round (1 = off): the trajectory first moves
     nearly rigidly onto the images with the turbine, then may bend (widens convergence)."""
-    max_rounds: int = 6
-    """Correspondence rounds (re-search after each solve) when any term is corr."""
+    max_iterations: int = 15
+    """Levenberg-Marquardt iterations per round (rounds after the first)."""
+    first_round_iterations: int = 15
+    """Levenberg-Marquardt iterations of the first round."""
+    max_rounds: int = 3
+    """Rounds: correspondences and visible-part line samples are re-found after each."""
     function_tolerance: float = 1e-3
     """Stop when the cost fell by less than this fraction over the last
     ``stall_iterations`` accepted steps."""
@@ -117,8 +119,11 @@ class FitConfig:
             raise bad("robust", "must be none, huber or cauchy")
         if self.samples_per_line < 1:
             raise bad("samples_per_line", "must be at least 1")
-        if self.max_iterations < 1 or self.max_rounds < 1 or self.stall_iterations < 1:
-            raise ValueError("max_iterations, max_rounds and stall_iterations must be >= 1")
+        for name in ("max_iterations", "first_round_iterations", "max_rounds",
+                     "stall_iterations"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v >= 1):
+                raise bad(name, "must be a whole number >= 1")
         positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
                     "line_search", "robust_scale", "gps_sigma", "heatmap_sigma")
         for name in positive:

@@ -113,14 +113,18 @@ def fit(
         # (with the turbine) onto the image evidence, before it may bend.
         stiff = FitProblem(flight, dataclasses.replace(
             cfg, lambda_pair=cfg.lambda_pair * cfg.stiff_first_round), keyframes)
+    mu = cfg.initial_damping
     max_rounds = cfg.max_rounds if needs_corr else (2 if stiff is not None else 1)
     for rounds in range(1, max_rounds + 1):
         prob = stiff if (stiff is not None and rounds == 1) else problem
         if prob is stiff:
             lin = prob.linearize(poses, theta, corr)
-        out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds,
-                                  history=history, callback=callback)
+        out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds, mu=mu,
+                                  max_iterations=cfg.max_iterations if rounds > 1 else
+                                  cfg.first_round_iterations, history=history,
+                                  callback=callback)
         poses, theta, lin = out.poses, out.theta, out.linearization
+        mu = max(out.mu, cfg.initial_damping)
         iterations += out.iterations
         termination = out.termination
         if not needs_corr:

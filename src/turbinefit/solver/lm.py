@@ -48,6 +48,7 @@ class IterationRecord:
 class LMOutcome:
     poses: SE3
     theta: FloatArray
+    mu: float
     linearization: Linearization
     iterations: int
     termination: str
@@ -74,12 +75,17 @@ def levenberg_marquardt(
     lin: Linearization,
     *,
     round_index: int = 0,
+    mu: float | None = None,
+    max_iterations: int | None = None,
     history: list[IterationRecord] | None = None,
     callback: Callable[[IterationRecord], None] | None = None,
 ) -> LMOutcome:
-    """Run LM from ``(poses, theta)`` whose linearisation is ``lin``, correspondences fixed."""
+    """Run LM from ``(poses, theta)`` whose linearisation is ``lin``, correspondences fixed.
+
+    ``mu`` is the starting damping (default ``config.initial_damping``; the outer loop
+    passes on the previous round's), ``max_iterations`` overrides the config's."""
     cfg = problem.config
-    mu = cfg.initial_damping
+    mu = cfg.initial_damping if mu is None else mu
     nu = 2.0
     optimise_poses = not problem.fixed.all()
     termination = "max_iterations"
@@ -87,7 +93,7 @@ def levenberg_marquardt(
     t0 = time.perf_counter()
     costs = [lin.cost]
     rejections = 0
-    for it in range(1, cfg.max_iterations + 1):
+    for it in range(1, (max_iterations or cfg.max_iterations) + 1):
         assert lin.D is not None and lin.B is not None and lin.g_p is not None
         g_inf = float(np.max(np.abs(lin.g_p))) if optimise_poses else 0.0
         if lin.g_t is not None:
@@ -153,4 +159,4 @@ def levenberg_marquardt(
         if mu > 1e16 or rejections >= 8:
             termination = "no_progress"
             break
-    return LMOutcome(poses, theta, lin, it, termination)
+    return LMOutcome(poses, theta, mu, lin, it, termination)
