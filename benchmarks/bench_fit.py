@@ -19,7 +19,6 @@ import argparse
 import json
 import os
 import platform
-import resource
 import shutil
 import statistics
 import subprocess
@@ -46,17 +45,19 @@ def run_fit(flight: Path, extra: list[str] | None = None) -> dict:
     """Run `turbinefit fit` in a child process; return wall time, peak RSS and the summary."""
     with tempfile.TemporaryDirectory(dir=DATA) as tmp:
         out = Path(tmp) / "fit"
-        cmd = [str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", "--quiet",
-               *(extra or [])]
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        cmd = [str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", *(extra or [])]
+        log = Path(tmp) / "stderr.txt"
+        with open(log, "w") as err:
+            t0 = time.perf_counter()
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+            _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak memory
+            wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        peak_kb = usage.ru_maxrss
         if proc.returncode != 0:
-            raise RuntimeError(f"{' '.join(cmd)} failed: {proc.stderr.strip()}")
+            raise RuntimeError(f"{' '.join(cmd)} failed: {log.read_text().strip()}")
         summary = json.loads((out / "summary.json").read_text())
-    return {"wall_s": wall, "peak_rss_mb": max(peak_kb, before) / 1024.0, "summary": summary}
+    return {"wall_s": wall, "peak_rss_mb": peak_kb / 1024.0, "summary": summary}
 
 
 def warm(flight: Path) -> None:

@@ -89,53 +89,62 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--quiet", action="store_true", help="no progress bar")
 
     # ---- fit --------------------------------------------------------------------
+    from turbinefit.solver.config import FitConfig
+
+    dflt = FitConfig()
     f = sub.add_parser(
         "fit", help="optimise poses and turbine of a flight folder",
         description="Refine every keyframe pose and the 7 turbine parameters with "
         "Levenberg-Marquardt on the heat-maps and the GPS/IMU relative poses. Writes "
         "OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs, iterations, "
         "timings, and errors before/after when ground truth exists), config.yaml (the "
-        "resolved options) and plots.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        "resolved options) and plots. Every option of turbinefit.FitConfig can also be set "
+        "in a --config YAML file; command-line options override it.",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
     f.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
-                   help="output folder (created atomically)")
+                   help="output folder (written atomically; never the input folder)")
     f.add_argument("--config", type=Path, default=None,
-                   help="YAML file of fit options (e.g. a previous run's config.yaml); "
-                   "command-line options override it")
+                   help="YAML file of fit options (e.g. a previous run's config.yaml)")
     f.add_argument("--preset", default=None,
-                   help="named configuration: paper-best, all-interp, all-corr, paper-worst, "
-                   "pose-only, turbine-only")
-    f.add_argument("--mode", choices=["joint", "pose", "turbine"], default=None,
-                   help="what to optimise [joint]")
-    f.add_argument("--points", choices=["interp", "corr", "none"], default=None,
-                   help="unary cost of the 6 model points [corr]")
-    f.add_argument("--lines", choices=["interp", "corr", "none"], default=None,
-                   help="unary cost of the line samples [interp]")
-    f.add_argument("--samples-per-line", type=_positive_int, default=None,
-                   help="samples on each model line [10]")
-    f.add_argument("--lambda-points", type=_float, default=None, help="weight of E_P [1]")
-    f.add_argument("--lambda-lines", type=_float, default=None, help="weight of E_L [1]")
-    f.add_argument("--lambda-pair", type=_float, default=None, help="weight of E_pair [1]")
-    f.add_argument("--pixel-sigma", type=_float, default=None,
-                   help="correspondence noise [px] [2]")
-    f.add_argument("--pair-sigma-t", type=_float, default=None,
-                   help="relative-pose translation std. dev. [m] [0.1]")
-    f.add_argument("--pair-sigma-r", dest="pair_sigma_r_deg", type=_float, default=None,
-                   help="relative-pose rotation std. dev. [deg] [0.1]")
-    f.add_argument("--robust", choices=["none", "huber", "cauchy"], default=None,
-                   help="robust loss on the image terms [none]")
-    f.add_argument("--robust-scale", type=_float, default=None,
-                   help="robust loss scale (whitened units) [2]")
-    f.add_argument("--gauge", choices=["first", "gps"], default=None,
-                   help="hold the first pose, or weak absolute GPS priors [first]")
-    f.add_argument("--gps-sigma", type=_float, default=None,
-                   help="std. dev. of the GPS priors [m] [3]")
-    f.add_argument("--max-iterations", type=_positive_int, default=None,
-                   help="LM iterations per correspondence round [30]")
+                   help="named configuration: paper-best (default), all-interp, all-corr, "
+                   "paper-worst, pose-only, turbine-only")
+
+    def opt(flag: str, name: str, help: str, **kw: Any) -> None:
+        f.add_argument(flag, dest=name, default=None,
+                       help=f"{help} (default: {getattr(dflt, name)})", **kw)
+
+    opt("--mode", "mode", "what to optimise", choices=["joint", "pose", "turbine"])
+    opt("--points", "points", "unary cost of the 6 model points",
+        choices=["interp", "corr", "none"])
+    opt("--lines", "lines", "unary cost of the line samples", choices=["interp", "corr", "none"])
+    opt("--samples-per-line", "samples_per_line", "samples on each model line",
+        type=_positive_int)
+    opt("--line-sampling", "line_sampling", "where line samples go: the visible part of each "
+        "line per keyframe, or uniform along it", choices=["visible", "uniform"])
+    opt("--lambda-points", "lambda_points", "weight lambda_P of the point term", type=_float)
+    opt("--lambda-lines", "lambda_lines", "weight lambda_L of the line term", type=_float)
+    opt("--lambda-pair", "lambda_pair", "weight lambda of the pairwise term", type=_float)
+    opt("--pixel-sigma", "pixel_sigma", "correspondence noise [px]", type=_float)
+    opt("--pair-sigma-t", "pair_sigma_t", "relative-pose translation std. dev. [m]",
+        type=_float)
+    opt("--pair-sigma-t-per-m", "pair_sigma_t_per_m",
+        "added relative translation std. dev. per metre of step [m/m]", type=_float)
+    opt("--pair-sigma-r", "pair_sigma_r_deg", "relative-pose rotation std. dev. [deg]",
+        type=_float)
+    opt("--heatmap-floor", "heatmap_floor", "background floor eps of the -log heat-map cost",
+        type=_float)
+    opt("--robust", "robust", "robust loss on the image terms", choices=["none", "huber", "cauchy"])
+    opt("--robust-scale", "robust_scale", "robust loss scale (whitened units)", type=_float)
+    opt("--gauge", "gauge", "hold the first pose, or weak absolute GPS position priors",
+        choices=["first", "gps"])
+    opt("--gps-sigma", "gps_sigma", "std. dev. of the GPS priors [m]", type=_float)
+    opt("--max-iterations", "max_iterations", "LM iterations per round", type=_positive_int)
+    opt("--max-rounds", "max_rounds", "rounds (correspondences re-found after each)",
+        type=_positive_int)
     f.add_argument("--no-plots", action="store_true", help="skip the figures")
     f.add_argument("--overwrite", action="store_true", help="replace OUT_DIR if it exists")
-    f.add_argument("--quiet", action="store_true", help="no progress output")
+    f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return p
 
 
@@ -145,9 +154,10 @@ def _version() -> str:
     return f"turbinefit {__version__}"
 
 
-_FIT_OPTIONS = ("mode", "points", "lines", "samples_per_line", "lambda_points", "lambda_lines",
-                "lambda_pair", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "robust",
-                "robust_scale", "gauge", "gps_sigma", "max_iterations")
+_FIT_OPTIONS = ("mode", "points", "lines", "samples_per_line", "line_sampling", "lambda_points",
+                "lambda_lines", "lambda_pair", "pixel_sigma", "pair_sigma_t",
+                "pair_sigma_t_per_m", "pair_sigma_r_deg", "heatmap_floor", "robust",
+                "robust_scale", "gauge", "gps_sigma", "max_iterations", "max_rounds")
 
 
 def _resolve_fit_config(args: argparse.Namespace) -> Any:
@@ -181,7 +191,9 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if not args.quiet:
         from tqdm import tqdm
 
-        bar = tqdm(desc="fit", unit="it", file=sys.stderr, dynamic_ncols=True, leave=False)
+        # disable=None: no bar when stderr is not a terminal (logs, CI)
+        bar = tqdm(desc="fit", unit="it", file=sys.stderr, dynamic_ncols=True, leave=False,
+                   disable=None)
 
         def progress(rec: Any) -> None:
             assert bar is not None

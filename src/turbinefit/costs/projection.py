@@ -53,9 +53,14 @@ def project_points(
     J_theta: FloatArray | None,
     with_jacobian: bool = True,
     world_dir: FloatArray | None = None,
+    blend: tuple[FloatArray, FloatArray, FloatArray] | None = None,
 ) -> Projection:
     """Project world points (M, 3) (Jacobian (M, 3, 7)) into every keyframe of ``world_T_cam``;
     per-keyframe points (N, M, 3) (Jacobian (N, M, 3, 7)) are accepted too.
+
+    ``blend = (Ja, Jb, f)`` gives per-keyframe Jacobians of points on segments,
+    ``(1 - f) Ja + f Jb`` with shared Ja, Jb (M, 3, 7) and fractions f (N, M), without
+    forming them (``J_theta`` is then ignored): much faster than (N, M, 3, 7) products.
 
     If ``world_dir`` (M, 3) is given (and ``with_jacobian``), also returns the unit image
     tangent of each point's direction (e.g. the model line it samples)."""
@@ -70,11 +75,19 @@ def project_points(
     if with_jacobian and Juv is not None:
         N, M = uv.shape[:2]
         J = np.empty((N, M, 2, 13))
-        A = Juv @ np.swapaxes(R, -1, -2)[:, None]  # (N, M, 2, 3) = Juv R^T
+        # A = Juv R^T, as one (N, 2M, 3) x (N, 3, 3) product
+        A = (Juv.reshape(N, 2 * M, 3) @ np.swapaxes(R, -1, -2)).reshape(N, M, 2, 3)
         J[..., 0:3] = -A
         J[..., 3:6] = np.cross(Juv, cam_p[:, :, None, :])
-        if J_theta is not None:
-            J[..., 6:13] = A @ (J_theta if J_theta.ndim == 4 else J_theta[None])
+        if blend is not None:
+            Ja, Jb, f = blend
+            AJa = _times_shared(A, Ja)
+            AJb = _times_shared(A, Jb)
+            J[..., 6:13] = AJa + f[..., None, None] * (AJb - AJa)
+        elif J_theta is not None and J_theta.ndim == 3:
+            J[..., 6:13] = _times_shared(A, J_theta)
+        elif J_theta is not None:
+            J[..., 6:13] = A @ J_theta
         else:
             J[..., 6:13] = 0.0
         if world_dir is not None:
@@ -82,3 +95,10 @@ def project_points(
             norm = np.linalg.norm(tg, axis=-1, keepdims=True)
             tangent = np.where(norm > 1e-12, tg / np.maximum(norm, 1e-300), [1.0, 0.0])
     return Projection(uv=uv, front=front, inside=inside, J=J, tangent=tangent)
+
+
+def _times_shared(A: FloatArray, Js: FloatArray) -> FloatArray:
+    """``A[n, m] @ Js[m]`` for A (N, M, 2, 3), Js (M, 3, 7), as M large products."""
+    N, M = A.shape[:2]
+    out = np.swapaxes(A, 0, 1).reshape(M, 2 * N, 3) @ Js  # (M, 2N, 7)
+    return np.swapaxes(out.reshape(M, N, 2, 7), 0, 1)

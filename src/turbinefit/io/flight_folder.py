@@ -222,9 +222,6 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int, width: in
                 _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname)
                 if stacked is None:
                     mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
-                    if hasattr(mm, "madvise") and hasattr(mmap_module, "MADV_RANDOM"):
-                        # the solver touches scattered pixels: no read-ahead
-                        mm.madvise(mmap_module.MADV_RANDOM)
                     maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
                 else:
                     f.seek(offset)

@@ -39,6 +39,8 @@ from turbinefit.solver.config import FitConfig
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
 FloatArray = NDArray[np.float64]
+#: Jacobian of model samples w.r.t. theta: shared (M, 3, 7), a blend (Ja, Jb, f), or None.
+ThetaJacobian = FloatArray | tuple[FloatArray, FloatArray, FloatArray] | None
 
 
 @dataclass
@@ -132,11 +134,12 @@ class FitProblem:
     # ------------------------------------------------------------------------------
     def model(self, theta: FloatArray, with_jacobian: bool,
               fractions: FloatArray | None = None,
-              ) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray | None]:
+              ) -> tuple[FloatArray, FloatArray | None, FloatArray, ThetaJacobian]:
         """Model points (6, 3) and line samples, with Jacobians w.r.t. theta.
 
-        Line samples are (5n, 3) at uniform fractions, or (N, 5n, 3) at per-keyframe
-        ``fractions`` (N, 5, n) along each line."""
+        Line samples are (5n, 3) at uniform fractions (Jacobian (5n, 3, 7)), or (N, 5n, 3) at
+        per-keyframe ``fractions`` (N, 5, n) along each line (Jacobian as a blend
+        ``(Ja, Jb, f)`` of the end points' Jacobians, see ``project_points``)."""
         P, JP = model_points(theta, self.config.geometry, with_jacobian)
         if fractions is None:
             S, JS, _ = line_samples(P, JP, self.config.samples_per_line)
@@ -147,10 +150,10 @@ class FitProblem:
         a = ends[self._line_index, 0]
         b = ends[self._line_index, 1]
         S = P[a][None] * (1.0 - f) + P[b][None] * f
-        JSn = None
+        blend = None
         if JP is not None:
-            JSn = JP[a][None] * (1.0 - f)[..., None] + JP[b][None] * f[..., None]
-        return P, JP, S, JSn
+            blend = (JP[a], JP[b], f[..., 0])
+        return P, JP, S, blend
 
     def visible_fractions(self, poses: SE3, theta: FloatArray) -> FloatArray:
         """Per keyframe and line, ``n`` sample fractions spread over the part of the line
@@ -208,15 +211,17 @@ class FitProblem:
         return out
 
     # ------------------------------------------------------------------------------
-    def _image_block(self, kind: str, pts: FloatArray, Jpts: FloatArray | None,
+    def _image_block(self, kind: str, pts: FloatArray, Jpts: ThetaJacobian,
                      world_dir: FloatArray | None, channels: NDArray[np.int_], lam: float,
                      poses: SE3,
                      target: FloatArray | None, found: NDArray[np.bool_] | None,
                      with_jacobian: bool) -> tuple[FloatArray, FloatArray | None, float, int]:
         """Robustified residual rows (N, R) and Jacobians (N, R, 13) of one image term."""
         cfg = self.config
-        pr = project_points(self.flight.camera, poses, pts, Jpts, with_jacobian,
-                            world_dir=world_dir if kind == "interp" else None)
+        blend = Jpts if isinstance(Jpts, tuple) else None
+        pr = project_points(self.flight.camera, poses, pts,
+                            None if isinstance(Jpts, tuple) else Jpts, with_jacobian,
+                            world_dir=world_dir if kind == "interp" else None, blend=blend)
         sw = math.sqrt(lam)
         J: FloatArray | None
         if kind == "interp" and with_jacobian and cfg.step_model == "curvature":
