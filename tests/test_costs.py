@@ -8,9 +8,9 @@ from helpers import CAMERA, orbit_poses, smooth_heatmaps
 
 from turbinefit.costs.bicubic import interpolate
 from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
-from turbinefit.costs.heatmap_cost import G_MIN, border_weight, heatmap_residuals
+from turbinefit.costs.heatmap_cost import G_MIN, border_weight, heatmap_terms, psd_2x2
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
-from turbinefit.costs.projection import project_points
+from turbinefit.costs.projection import Projection, project_points
 from turbinefit.costs.robust import RobustLoss
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
@@ -38,14 +38,14 @@ def test_bicubic_reproduces_pixels_and_linear_ramps():
     ii, jj = np.meshgrid(np.arange(2, 10), np.arange(2, 14), indexing="ij")
     uv = np.stack([jj.ravel(), ii.ravel()], -1).astype(float)[None].repeat(2, 0)
     ch = np.full(uv.shape[1], 5)
-    val, _ = interpolate(st, np.array([0, 1]), ch, uv)
+    val, _, _ = interpolate(st, np.array([0, 1]), ch, uv)
     np.testing.assert_allclose(val, maps[:, 5, ii.ravel(), jj.ravel()], atol=1e-6)
     # a linear ramp is reproduced exactly between pixels, with the exact gradient
     v, u = np.mgrid[0:12, 0:16]
     ramp = np.zeros((1, 7, 12, 16), np.float32)
     ramp[0, 2] = (0.01 * u + 0.02 * v).astype(np.float32)
     uvq = rng.uniform([2, 2], [13, 9], (1, 30, 2))
-    val, grad = interpolate(HeatmapStack(ramp), np.array([0]), np.full(30, 2), uvq)
+    val, grad, _ = interpolate(HeatmapStack(ramp), np.array([0]), np.full(30, 2), uvq)
     np.testing.assert_allclose(val, 0.01 * uvq[..., 0] + 0.02 * uvq[..., 1], atol=1e-6)
     np.testing.assert_allclose(grad, np.broadcast_to([0.01, 0.02], grad.shape), atol=1e-6)
 
@@ -56,7 +56,7 @@ def test_bicubic_gradient_matches_finite_differences():
     rng = np.random.default_rng(1)
     uv = rng.uniform([3, 3], [46, 36], (1, 40, 2))
     ch = np.full(40, 1)
-    _, g = interpolate(st, np.array([0]), ch, uv)
+    _, g, _ = interpolate(st, np.array([0]), ch, uv)
     assert g is not None
     for a in range(2):
         d = np.zeros(2)
@@ -119,30 +119,66 @@ def test_border_weight_gradient():
         np.testing.assert_allclose(g[:, a], num, atol=1e-5)
 
 
-def test_heatmap_residual_jacobian():
-    poses = orbit_poses(2)
+def _pixels(uv: np.ndarray) -> Projection:
+    n, m = uv.shape[:2]
+    ones = np.ones((n, m), bool)
+    return Projection(uv=uv, front=ones, inside=ones, J=None)
+
+
+def _uv_inside_cells(rng, n, m, lo=12.0, hi=(300.0, 220.0)):
+    """Pixels away from the image border and from cell edges (the bicubic Hessian is
+    discontinuous across pixel cells, so finite differences must stay inside one)."""
+    base = np.floor(rng.uniform(lo, hi, (n, m, 2)))
+    return base + rng.uniform(0.25, 0.75, (n, m, 2))
+
+
+def test_heatmap_gradient_and_hessian():
+    """g is the gradient of 1/2 s; the exact Hessian model is the true Hessian wherever
+    that is positive semi-definite, and its nearest PSD matrix elsewhere."""
+    rng = np.random.default_rng(5)
     st = HeatmapStack(smooth_heatmaps(2, seed=7))
-    _, _, ch = _model(THETA)
-    channels = np.r_[np.array([0, 1, 2, 3, 3, 3]), ch]
+    uv = _uv_inside_cells(rng, 2, 40)
+    ch = rng.integers(0, 7, 40)
     kf = np.array([0, 1])
+    lam, margin = 1.7, 8.0
+    t = heatmap_terms(st, kf, ch, _pixels(uv), lam, margin, 0.05)
+    assert t.g is not None and t.H is not None
+    h = 1e-5
+    for a in range(2):
+        d = np.zeros(2)
+        d[a] = h
+        sp = heatmap_terms(st, kf, ch, _pixels(uv + d), lam, margin, 0.05, False).s
+        sm = heatmap_terms(st, kf, ch, _pixels(uv - d), lam, margin, 0.05, False).s
+        np.testing.assert_allclose(t.g[..., a], 0.5 * (sp - sm) / (2 * h), rtol=1e-5, atol=1e-8)
+    # numerical Hessian (the points are far from the border: no fade term)
+    Hn = np.empty((2, 40, 2, 2))
+    for a in range(2):
+        d = np.zeros(2)
+        d[a] = h
+        gp = heatmap_terms(st, kf, ch, _pixels(uv + d), lam, margin, 0.05).g
+        gm = heatmap_terms(st, kf, ch, _pixels(uv - d), lam, margin, 0.05).g
+        Hn[..., a] = (gp - gm) / (2 * h)
+    Hn = 0.5 * (Hn + np.swapaxes(Hn, -1, -2))
+    ev = np.linalg.eigvalsh(Hn)
+    psd = ev[..., 0] > 1e-9
+    assert psd.any() and (~psd).any()
+    np.testing.assert_allclose(t.H[psd], Hn[psd], rtol=1e-4, atol=1e-7)
+    assert np.all(np.linalg.eigvalsh(t.H)[..., 0] > -1e-12)
 
-    def res(p, t, with_j=False):
-        pts_, Jt, _ = _model(t, with_j)
-        pr = project_points(CAMERA, p, pts_, Jt, with_j)
-        return heatmap_residuals(st, kf, channels, pr, 1.3, 8.0)
 
-    r, J = res(poses, THETA, True)
-    assert np.all(np.isfinite(r)) and np.all(r >= 0)
-    for k in range(2):
-        for i in range(13):
-            pp, tp = perturb(poses, THETA, k, i, EPS)
-            pm, tm = perturb(poses, THETA, k, i, -EPS)
-            num = (res(pp, tp)[0][k] - res(pm, tm)[0][k]) / (2 * EPS)
-            np.testing.assert_allclose(J[k, :, i], num, rtol=1e-4, atol=1e-5)
+def test_psd_2x2_is_the_nearest_psd_matrix():
+    rng = np.random.default_rng(1)
+    a, b, c = rng.normal(size=(3, 500))
+    out = psd_2x2(a, b, c)
+    M = np.stack([np.stack([a, b], -1), np.stack([b, c], -1)], -2)
+    w, V = np.linalg.eigh(M)
+    ref = np.einsum("nij,nj,nkj->nik", V, np.maximum(w, 0.0), V)
+    np.testing.assert_allclose(out, ref, atol=1e-12)
 
 
-def test_heatmap_residual_limits():
-    """G -> 1: bounded derivative; G -> 0 (empty heat-map): finite cost, zero gradient."""
+def test_heatmap_limits():
+    """G -> 1: zero cost; G -> 0 (empty heat-map): finite cost; no gradient or curvature
+    from a clamped heat-map; no evidence (zero cost) outside the image."""
     poses = orbit_poses(1)
     pts, J_theta, _ = _model(THETA)
     pr = project_points(CAMERA, poses, pts, J_theta)
@@ -151,31 +187,42 @@ def test_heatmap_residual_limits():
     for floor, fill in cases:
         expect = math.log1p(floor) - math.log(floor) if fill == 0.0 else 0.0
         st = HeatmapStack(np.full((1, 7, 240, 320), fill, np.float32))
-        r, J = heatmap_residuals(st, np.array([0]), ch, pr, 1.0, 0.0, floor)
+        t = heatmap_terms(st, np.array([0]), ch, pr, 1.0, 0.0, floor)
         ins = pr.inside[0]
-        np.testing.assert_allclose(r[0, ins] ** 2, expect + 1e-6, rtol=1e-9)
-        assert np.all(np.isfinite(J)) and np.abs(J).max() < 1e-9
-        assert np.all(r[0, ~ins] == 0)
+        np.testing.assert_allclose(t.s[0, ins], expect, rtol=1e-9, atol=1e-12)
+        assert t.g is not None and t.H is not None
+        assert np.all(np.isfinite(t.g)) and np.abs(t.g).max() < 1e-9
+        assert np.abs(t.H).max() < 1e-9
+        assert np.all(t.s[0, ~ins] == 0)
 
 
-def test_pairwise_jacobian_and_zero_at_measurement():
+@pytest.mark.parametrize("frame", ["estimated", "measured"])
+def test_pairwise_jacobian_and_zero_at_measurement(frame):
     rng = np.random.default_rng(4)
     q = rng.normal(size=(5, 4))
     poses = SE3.from_rotation_translation(q, rng.normal(scale=5, size=(5, 3)))
     meas = relative_poses(poses[:-1], poses[1:])
+    F = poses[:-1].rotation_matrix() if frame == "measured" else None
     L = np.diag([10.0, 10, 10, 50, 50, 50])
-    r, _, _ = pairwise_residuals(poses[:-1], poses[1:], meas, L)
+    r, _, _ = pairwise_residuals(poses[:-1], poses[1:], meas, L, True, F)
     np.testing.assert_allclose(r, 0, atol=1e-9)
     noisy = poses.retract(rng.normal(scale=0.1, size=(5, 6)))
-    r, Ji, Jj = pairwise_residuals(noisy[:-1], noisy[1:], meas, L)
+    r, Ji, Jj = pairwise_residuals(noisy[:-1], noisy[1:], meas, L, True, F)
+    if frame == "measured":
+        # the translation residual ignores the estimate's attitude
+        rot = noisy.retract(np.c_[np.zeros((5, 3)), rng.normal(scale=0.1, size=(5, 3))])
+        r2, _, _ = pairwise_residuals(rot[:-1], rot[1:], meas, L, True, F)
+        np.testing.assert_allclose(r2[:, :3], r[:, :3], atol=1e-12)
     for e in range(4):
         for which, Jx in ((0, Ji), (1, Jj)):
             for i in range(6):
                 d = np.zeros((5, 6))
                 d[e + which, i] = EPS
-                num = (pairwise_residuals(noisy.retract(d)[:-1], noisy.retract(d)[1:], meas, L)[0][e]
-                       - pairwise_residuals(noisy.retract(-d)[:-1], noisy.retract(-d)[1:], meas, L)[0][e]
-                       ) / (2 * EPS)
+                rp = pairwise_residuals(noisy.retract(d)[:-1], noisy.retract(d)[1:], meas, L,
+                                        False, F)[0][e]
+                rm = pairwise_residuals(noisy.retract(-d)[:-1], noisy.retract(-d)[1:], meas, L,
+                                        False, F)[0][e]
+                num = (rp - rm) / (2 * EPS)
                 np.testing.assert_allclose(Jx[e, :, i], num, atol=1e-5)
 
 

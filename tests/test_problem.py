@@ -25,16 +25,18 @@ def make_flight() -> Flight:
         turbine=TurbineParams(0.0, 0.0, 80.0, 0.6, 5.0, 0.3, 50.0), odometry=meas)
 
 
-@pytest.mark.parametrize("points,lines,mode,robust,gauge", [
-    ("interp", "interp", "joint", "none", "first"),
-    ("corr", "corr", "joint", "huber", "gps"),
-    ("corr", "interp", "pose", "cauchy", "first"),
-    ("interp", "corr", "turbine", "none", "first"),
+@pytest.mark.parametrize("points,lines,mode,robust,gauge,frame", [
+    ("interp", "interp", "joint", "none", "first", "measured"),
+    ("corr", "corr", "joint", "huber", "gps", "estimated"),
+    ("corr", "interp", "pose", "cauchy", "first", "measured"),
+    ("corr", "interp", "joint", "huber", "first", "estimated"),
+    ("interp", "corr", "turbine", "none", "first", "measured"),
 ])
-def test_gradient_matches_finite_differences(points, lines, mode, robust, gauge):
+def test_gradient_matches_finite_differences(points, lines, mode, robust, gauge, frame):
     flight = make_flight()
     cfg = FitConfig(points=points, lines=lines, mode=mode, robust=robust, gauge=gauge,
-                    samples_per_line=5, robust_scale=0.5, corr_threshold=0.05)
+                    pair_frame=frame, samples_per_line=5, robust_scale=0.5,
+                    corr_threshold=0.05)
     prob = FitProblem(flight, cfg)
     poses = flight.world_T_cam
     theta = flight.turbine.to_vector()

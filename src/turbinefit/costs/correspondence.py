@@ -1,11 +1,14 @@
 """The paper's correspondence cost E_unary(1): 2-D points found by search in the heat-maps.
 
 * Model points: search a circular window of radius ``radius`` px around the projection in
-  the matching point channel; the maximum, if above ``threshold``, is the correspondence,
-  refined to sub-pixel precision by a parabola through its 3x3 neighbourhood.
+  the matching point channel; the maximum, if above ``threshold`` and not on the image
+  border (where it is not bracketed), is the correspondence,
+  refined to sub-pixel precision by a parabola through the logarithms of its
+  4-neighbourhood (exact for a Gaussian peak).
 * Line samples: search along the normal of the projected line, ``+-half_length`` px in
-  1 px steps, in the matching line channel; the maximum above ``threshold``, refined by a
-  parabola along the normal, is the correspondence.
+  1 px steps (bilinear samples), in the matching line channel; the maximum above ``threshold`` (bracketed by
+  two searched pixels inside the image), refined by a
+  log-parabola along the normal, is the correspondence.
 
 Residual: ``sqrt(lambda) (uv - a') / sigma_px`` for each point with a correspondence (the
 paper's squared 2-D distance, whitened by the expected detection noise ``sigma_px``).
@@ -36,11 +39,21 @@ def _disc_offsets(radius: int, step: int) -> NDArray[np.int64]:
 _SQUARE5 = np.stack(np.meshgrid(np.arange(-2, 3), np.arange(-2, 3)), -1).reshape(-1, 2)
 
 
-def _parabola_offset(vm: FloatArray, v0: FloatArray, vp: FloatArray) -> FloatArray:
-    """Sub-sample offset of a parabola's vertex through (-1, vm), (0, v0), (1, vp)."""
-    den = vm - 2.0 * v0 + vp
+#: Values below this are raised to it before the log in :func:`_peak_offset`.
+_LOG_FLOOR = 1e-6
+
+
+def _peak_offset(vm: FloatArray, v0: FloatArray, vp: FloatArray) -> FloatArray:
+    """Sub-sample offset of a peak from three samples at -1, 0, 1: the vertex of the
+    parabola through their logarithms (exact for Gaussian profiles, which blurred
+    heat-map peaks and ridges are; a parabola through the values themselves is biased by
+    up to 0.1-0.2 px on a 1-2 px wide peak). Clipped to [-0.5, 0.5]."""
+    lm = np.log(np.maximum(vm, _LOG_FLOOR))
+    l0 = np.log(np.maximum(v0, _LOG_FLOOR))
+    lp = np.log(np.maximum(vp, _LOG_FLOOR))
+    den = lm - 2.0 * l0 + lp
     ok = den < -1e-12
-    off = np.where(ok, 0.5 * (vm - vp) / np.where(ok, den, -1.0), 0.0)
+    off = np.where(ok, 0.5 * (lm - lp) / np.where(ok, den, -1.0), 0.0)
     return np.minimum(np.maximum(off, -0.5), 0.5)
 
 
@@ -93,14 +106,16 @@ def find_point_correspondences(
                             centre, R)
     coarse = np.stack([bu, bv], axis=-1)
     peak, bu, bv = _window_max(heatmaps, keyframes, base, coarse, _SQUARE5, usable, centre, R)
-    found = usable & (peak >= threshold)
+    # a peak on the image border is not bracketed: the true maximum may lie outside
+    inner = (bu > 0) & (bu < W - 1) & (bv > 0) & (bv < H - 1)
+    found = usable & (peak >= threshold) & inner
     # sub-pixel refinement from the 4-neighbourhood
     nb = np.stack([
         np.maximum(bu - 1, 0) + bv * W, np.minimum(bu + 1, W - 1) + bv * W,
         bu + np.maximum(bv - 1, 0) * W, bu + np.minimum(bv + 1, H - 1) * W], -1)
     nvals = heatmaps.gather(keyframes, base + nb)
-    du = _parabola_offset(nvals[..., 0], peak, nvals[..., 1])
-    dv = _parabola_offset(nvals[..., 2], peak, nvals[..., 3])
+    du = _peak_offset(nvals[..., 0], peak, nvals[..., 1])
+    dv = _peak_offset(nvals[..., 2], peak, nvals[..., 3])
     target = np.stack([bu + du, bv + dv], axis=-1).astype(np.float64)
     return target, found
 
@@ -120,24 +135,28 @@ def find_line_correspondences(
     L = max(1, round(half_length))
     steps = np.arange(-L, L + 1, dtype=np.float64)
     pos = uv[..., None, :] + steps[:, None] * normal[..., None, :]  # (N, M, S, 2)
-    pu = np.rint(pos[..., 0]).astype(np.int64)
-    pv = np.rint(pos[..., 1]).astype(np.int64)
-    in_img = (pu >= 0) & (pu < W) & (pv >= 0) & (pv < H) & usable[..., None]
+    # the profile is sampled bilinearly at exact positions on the normal (rounding them to
+    # pixels would sample it unevenly and bias the peak)
+    pu, pv = pos[..., 0], pos[..., 1]
+    in_img = (pu >= 0) & (pu <= W - 1) & (pv >= 0) & (pv <= H - 1) & usable[..., None]
+    u0 = np.clip(np.floor(pu), 0, W - 2).astype(np.int64)
+    v0 = np.clip(np.floor(pv), 0, H - 2).astype(np.int64)
+    fu = np.clip(pu - u0, 0.0, 1.0)
+    fv = np.clip(pv - v0, 0.0, 1.0)
     base = (channels.astype(np.int64) * (H * W))[None, :, None]
-    np.maximum(pu, 0, out=pu)
-    np.minimum(pu, W - 1, out=pu)
-    np.maximum(pv, 0, out=pv)
-    np.minimum(pv, H - 1, out=pv)
-    vals = heatmaps.gather(keyframes, base + pv * W + pu)
+    i00 = base + v0 * W + u0
+    taps = heatmaps.gather(keyframes, np.stack([i00, i00 + 1, i00 + W, i00 + W + 1], -1))
+    vals = ((1 - fv) * ((1 - fu) * taps[..., 0] + fu * taps[..., 1])
+            + fv * ((1 - fu) * taps[..., 2] + fu * taps[..., 3]))
     vals[~in_img] = -1.0
     best = np.argmax(vals, axis=-1)
     peak = np.take_along_axis(vals, best[..., None], axis=-1)[..., 0]
-    found = usable & (peak >= threshold)
     S = steps.size
     vm = np.take_along_axis(vals, np.maximum(best - 1, 0)[..., None], axis=-1)[..., 0]
     vp = np.take_along_axis(vals, np.minimum(best + 1, S - 1)[..., None], axis=-1)[..., 0]
-    vm = np.where(best > 0, vm, peak)
-    vp = np.where(best < S - 1, vp, peak)
-    s = steps[best] + _parabola_offset(np.maximum(vm, 0.0), peak, np.maximum(vp, 0.0))
+    # the maximum must be bracketed by two searched pixels inside the image
+    bracketed = (best > 0) & (best < S - 1) & (vm >= 0.0) & (vp >= 0.0)
+    found = usable & (peak >= threshold) & bracketed
+    s = steps[best] + _peak_offset(vm, peak, vp)
     target = uv + s[..., None] * normal
     return target, found

@@ -1,14 +1,14 @@
 """The paper's direct heat-map cost E_unary(2): -log of the bicubically interpolated
-heat-map under each projected model point.
+heat-map under each projected model point, with its gradient and a Newton model.
 
-Residual (documented choice; method notes ask for a well-behaved one)::
+Cost of one point at pixel ``uv`` (documented choice; method notes ask for a
+well-behaved one)::
 
-    r = sqrt(lambda) * w(uv) * sqrt(C + rho),   rho = -log((clamp(G, 0, 1) + eps) / (1 + eps))
+    c(uv) = 1/2 s,   s = lambda * w(uv)^2 * rho(G(uv)),
+    rho(G) = -log((clamp(G, 0, 1) + eps) / (1 + eps))
 
-``1/2 r^2 = 1/2 lambda w^2 (C + rho)``: C is a constant, so with ``eps -> 0`` this has the
-paper's minimiser (``-log G``), but unlike ``sqrt(rho)`` its derivative stays bounded as
-G -> 1 (``|dr/dG| <= 1 / (2 sqrt(C))``), ``rho(1) = 0``, and G -> 0 (an empty heat-map)
-costs the finite ``-log(eps / (1 + eps))`` instead of infinity.
+With ``eps -> 0`` this has the paper's minimiser (``-log G``); ``rho(1) = 0`` and an empty
+heat-map (G -> 0) costs the finite ``-log(eps / (1 + eps))`` instead of infinity.
 
 ``eps`` (the ``heatmap_floor`` option) reads the heat-map as a mixture of the CNN's
 response and a uniform background of weight eps. It is what keeps the cost usable on real
@@ -21,9 +21,23 @@ barely changes the cost. Off the structure the cost is then nearly flat.
 inside the image, falls smoothly (smoothstep) to 0 over ``margin`` pixels at the border, and
 is 0 outside. Charging such points the background cost instead makes the solver shrink the
 model to pull samples into view (measured: 3-9x worse fits).
+
+**Step model.** The term is not a sum of squares, so Levenberg-Marquardt is given, per
+point, the exact gradient ``g = d c / d uv`` and the exact image-space Hessian of ``c``
+(from the interpolant's second derivatives) projected onto the positive semi-definite
+cone, plus the Gauss-Newton term of the border fade; the solver forms ``J^T H J`` and
+``J^T g`` with ``J = d uv / d x``. On a ridge this is the ridge's own curvature across it
+and none along it; in a peak's tails, where ``-log`` is concave, it is zero instead of
+negative. The alternative least-squares residual ``sqrt(rho)`` has a vanishing
+Gauss-Newton Hessian at the minimum whenever a peak is below 1 (every real CNN output):
+LM then overshoots and crawls. Measured on a simulated 200-keyframe flight (seed 3, peaks
+jittered by 10 %), it stopped after 200 iterations at 0.67 m mean position error, where
+this model converges to 0.22 m.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,8 +52,6 @@ FloatArray = NDArray[np.float64]
 G_MIN = 1e-4
 #: Default heat-map floor eps.
 DEFAULT_FLOOR = 0.05
-#: Constant added under the square root (keeps dr/dG bounded at G = 1).
-RHO_OFFSET = 1e-6
 
 
 def border_weight(uv: FloatArray, width: int, height: int, margin: float
@@ -63,132 +75,82 @@ def border_weight(uv: FloatArray, width: int, height: int, margin: float
     return w, grad
 
 
-def heatmap_residuals(
-    heatmaps: HeatmapStack,
-    keyframes: NDArray[np.int_],
-    channels: NDArray[np.int_],
-    proj: Projection,
-    sqrt_weight: float,
-    margin: float,
-    floor: float = DEFAULT_FLOOR,
-) -> tuple[FloatArray, FloatArray | None]:
-    """Residuals (N, M) and their Jacobians (N, M, 13) of the heat-map cost.
-
-    Args:
-        heatmaps, keyframes: the heat-maps and which keyframe each row of ``proj`` is.
-        channels: (M,) heat-map channel of each point.
-        proj: the points' projection (with Jacobian if one is wanted).
-        sqrt_weight: sqrt(lambda) of this term.
-        margin: border fade width [px].
-        floor: the heat-map floor eps (see the module docstring).
-    """
-    ev = _evaluate(heatmaps, keyframes, channels, proj, margin, floor)
-    r = sqrt_weight * ev.w * ev.root
-    if proj.J is None:
-        return r, None
-    dr_duv = sqrt_weight * (ev.dw * ev.root[..., None]
-                            + (ev.w * ev.drho_dG / (2.0 * ev.root))[..., None] * ev.dG)
-    dr_duv = np.where(proj.front[..., None], dr_duv, 0.0)
-    return r, np.einsum("nmk,nmkp->nmp", dr_duv, proj.J)
+def psd_2x2(a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """Nearest positive semi-definite matrices (..., 2, 2) of ``[[a, b], [b, c]]``
+    (negative eigenvalues set to zero)."""
+    m = 0.5 * (a + c)
+    d = np.sqrt(0.25 * (a - c) ** 2 + b * b)
+    l1 = m + d
+    l2 = m - d
+    out = np.empty((*a.shape, 2, 2))
+    out[..., 0, 0] = a
+    out[..., 0, 1] = b
+    out[..., 1, 0] = b
+    out[..., 1, 1] = c
+    # one positive eigenvalue: l1 e1 e1^T = l1 / (l1 - l2) (H - l2 I)
+    one = (l2 < 0.0) & (l1 > 0.0)
+    f = np.where(one, l1 / np.where(one, l1 - l2, 1.0), 1.0)
+    shift = np.where(one, l2, 0.0)
+    out[..., 0, 0] -= shift
+    out[..., 1, 1] -= shift
+    out *= f[..., None, None]
+    out[l1 <= 0.0] = 0.0
+    return out
 
 
-class _Eval:
-    __slots__ = ("G", "dG", "drho_dG", "dw", "rho", "root", "w")
+@dataclass
+class HeatmapTerms:
+    """The heat-map cost of N x M points: cost ``1/2 s`` (N, M), and with derivatives the
+    gradient ``g`` (N, M, 2) of ``1/2 s`` w.r.t. uv and its PSD Hessian model ``H``
+    (N, M, 2, 2) (see the module docstring)."""
 
-    def __init__(self, **kw: FloatArray) -> None:
-        for k, v in kw.items():
-            setattr(self, k, v)
-
-    G: FloatArray
-    dG: FloatArray
-    drho_dG: FloatArray
-    dw: FloatArray
-    rho: FloatArray
-    root: FloatArray
-    w: FloatArray
+    s: FloatArray
+    g: FloatArray | None = None
+    H: FloatArray | None = None
 
 
-def _evaluate(heatmaps: HeatmapStack, keyframes: NDArray[np.int_], channels: NDArray[np.int_],
-              proj: Projection, margin: float, floor: float) -> _Eval:
-    w, dw = border_weight(proj.uv, heatmaps.width, heatmaps.height, margin)
-    w = np.where(proj.front, w, 0.0)
-    dw = np.where(proj.front[..., None], dw, 0.0)
-    G, dG = interpolate(heatmaps, keyframes, channels, proj.uv, with_gradient=True)
-    assert dG is not None
-    eps = max(floor, G_MIN)
-    Gc = np.minimum(np.maximum(G, 0.0), 1.0)
-    rho = np.log1p(eps) - np.log(Gc + eps)
-    clamped = (G <= 0.0) | (G >= 1.0)
-    drho_dG = np.where(clamped, 0.0, -1.0 / (Gc + eps))
-    return _Eval(G=G, dG=dG, drho_dG=drho_dG, dw=dw, rho=rho, root=np.sqrt(RHO_OFFSET + rho), w=w)
-
-
-def heatmap_model(
+def heatmap_terms(
     heatmaps: HeatmapStack,
     keyframes: NDArray[np.int_],
     channels: NDArray[np.int_],
     proj: Projection,
     weight: float,
     margin: float,
-    curvature: float,
     floor: float = DEFAULT_FLOOR,
-    along: float = 0.25,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The heat-map cost with a curvature-aware Gauss-Newton model.
+    with_derivatives: bool = True,
+) -> HeatmapTerms:
+    """The heat-map cost of projected points, optionally with gradient and Hessian model.
 
-    The cost of a point is ``1/2 s`` with ``s = lambda w^2 (C + rho)`` (exactly the
-    residual of :func:`heatmap_residuals` squared). Its plain Gauss-Newton model is poor:
-    wherever a heat-map peak is not reached exactly (``rho_min > 0``: noise, blur, a model
-    that cannot fit every sample), ``J^T J`` of ``sqrt(C + rho)`` vanishes at the minimum
-    although the cost's curvature does not, so LM overshoots and crawls. Instead the model
-    uses the exact gradient with the curvature of a Gaussian ridge of width
-    ``1 / sqrt(curvature)`` px across the point's line (``along`` of it along the line;
-    isotropic for points), plus the Gauss-Newton term of the border fade::
-
-        g_uv = lambda [w grad(w) (C + rho) + 1/2 w^2 grad(rho)]
-        H_uv = lambda [(C + rho) grad(w) grad(w)^T + 1/2 w^2 curvature P],
-        P = n n^T + along t t^T (lines, tangent t, normal n), I (points)
-
-    (``P`` is scaled by ``G / (G + eps)``: where the heat-map is at the floor there is no
-    evidence and no stiffness; on a ridge this is the curvature of ``-log(G + eps)``).
-    The model is returned as two rows per point, ``rows = L^-1 g_uv`` and
-    ``J_rows = L^T J_uv`` with ``H_uv = L L^T``, so that ``J_rows^T rows`` is the exact
-    gradient and ``J_rows^T J_rows`` the model Hessian. Only the step depends on this
-    model; the cost, and so the optimum, is the paper's.
-
-    Returns:
-        s: (N, M) squared residuals (cost ``1/2 s``); rows: (N, M, 2); J_rows: (N, M, 2, 13).
+    Args:
+        heatmaps, keyframes: the heat-maps and which keyframe each row of ``proj`` is.
+        channels: (M,) heat-map channel of each point.
+        proj: the points' projection.
+        weight: lambda of this term.
+        margin: border fade width [px].
+        floor: the heat-map floor eps (see the module docstring).
+        with_derivatives: also return ``g`` and ``H``.
     """
-    assert proj.J is not None
-    ev = _evaluate(heatmaps, keyframes, channels, proj, margin, floor)
-    c_rho = RHO_OFFSET + ev.rho
-    s = weight * ev.w * ev.w * c_rho
-    grad_rho = ev.drho_dG[..., None] * ev.dG
-    g = weight * (ev.w[..., None] * ev.dw * c_rho[..., None]
-                  + 0.5 * (ev.w * ev.w)[..., None] * grad_rho)
-    Gc = np.minimum(np.maximum(ev.G, 0.0), 1.0)
-    k = 0.5 * weight * ev.w * ev.w * curvature * Gc / (Gc + max(floor, G_MIN))
-    if proj.tangent is not None:
-        t = proj.tangent
-        nrm = np.stack([-t[..., 1], t[..., 0]], axis=-1)
-        P = (nrm[..., :, None] * nrm[..., None, :]) + along * (t[..., :, None] * t[..., None, :])
-    else:
-        P = np.broadcast_to(np.eye(2), (*s.shape, 2, 2))
-    H = k[..., None, None] * P + (weight * c_rho)[..., None, None] * (
-        ev.dw[..., :, None] * ev.dw[..., None, :])
-    tiny = 1e-9 * max(weight * curvature, 1e-12)
-    a = H[..., 0, 0] + tiny
-    b = H[..., 0, 1]
-    c = H[..., 1, 1] + tiny
-    l11 = np.sqrt(a)
-    l21 = b / l11
-    l22 = np.sqrt(np.maximum(c - l21 * l21, tiny))
-    rows = np.empty((*s.shape, 2))
-    rows[..., 0] = g[..., 0] / l11
-    rows[..., 1] = (g[..., 1] - l21 * rows[..., 0]) / l22
-    Ju = proj.J[..., 0, :]
-    Jv = proj.J[..., 1, :]
-    J_rows = np.empty(proj.J.shape)
-    J_rows[..., 0, :] = l11[..., None] * Ju + l21[..., None] * Jv
-    J_rows[..., 1, :] = l22[..., None] * Jv
-    return s, rows, J_rows
+    w, dw = border_weight(proj.uv, heatmaps.width, heatmaps.height, margin)
+    w = np.where(proj.front, w, 0.0)
+    G, dG, hG = interpolate(heatmaps, keyframes, channels, proj.uv,
+                            with_gradient=with_derivatives, with_hessian=with_derivatives)
+    eps = max(floor, G_MIN)
+    Gc = np.minimum(np.maximum(G, 0.0), 1.0)
+    rho = np.log1p(eps) - np.log(Gc + eps)
+    w2 = w * w
+    s = weight * w2 * rho
+    if not with_derivatives:
+        return HeatmapTerms(s)
+    assert dG is not None and hG is not None
+    dw = np.where(proj.front[..., None], dw, 0.0)
+    live = (G > 0.0) & (G < 1.0)
+    inv = np.where(live, 1.0 / (Gc + eps), 0.0)  # -rho'(G); rho''(G) = inv^2
+    g = weight * (w * rho)[..., None] * dw - (0.5 * weight * w2 * inv)[..., None] * dG
+    k = 0.5 * weight * w2
+    # 1/2 lambda w^2 (rho'' dG dG^T + rho' d2G), projected; + border fade (Gauss-Newton)
+    a = k * (inv * inv * dG[..., 0] ** 2 - inv * hG[..., 0])
+    b = k * (inv * inv * dG[..., 0] * dG[..., 1] - inv * hG[..., 1])
+    c = k * (inv * inv * dG[..., 1] ** 2 - inv * hG[..., 2])
+    H = psd_2x2(a, b, c)
+    H += (weight * rho)[..., None, None] * (dw[..., :, None] * dw[..., None, :])
+    return HeatmapTerms(s, g, H)

@@ -2,9 +2,20 @@
 
 With poses ``world_T_cam`` = (R, t) (camera-to-world, quaternion q)::
 
-    t_ij = R_i^T (t_j - t_i),   q_ij = q_i^-1 * q_j
+    t_ij = F_i^T (t_j - t_i),   q_ij = q_i^-1 * q_j
     e    = [ t^_ij - t_ij ;  2 Vec(q^_ij * q_ij^-1) ]       (hat = GPS/IMU measurement)
     r    = sqrt(lambda) * L e,   C = L^T L
+
+``F_i`` is the frame the relative translation is expressed in. The paper's is the
+estimate's own attitude, ``F_i = R_i`` (``frame="estimated"``): right for body-frame
+odometry (visual-inertial, wheel), whose step errors do not depend on the attitude error.
+For GPS/IMU poses it is wrong: GPS measures positions in the world, and the measured
+step ``t^_ij = R^_i^T (t^_j - t^_i)`` was rotated into the frame by the IMU's *drifting*
+attitude ``R^_i``, so comparing it in the corrected attitude ``R_i`` charges every step
+its attitude error times its length, correlated along the whole flight. With
+``frame="measured"``, ``F_i = R^_i``: the world-frame steps are compared, the attitude is
+left to the rotation part and the images. The cost still uses the same information
+matrix C (per body axis of the measured keyframe); only the translation part changes.
 
 ``C`` is the information matrix (1/m^2 on translation, 1/rad^2 on rotation); the default
 is diagonal, ``diag(1/sigma_t^2 I3, 1/sigma_r^2 I3)``, with sigma_t growing with the
@@ -30,13 +41,16 @@ def relative_poses(world_T_i: SE3, world_T_j: SE3) -> SE3:
 
 def pairwise_residuals(
     world_T_i: SE3, world_T_j: SE3, measured_i_T_j: SE3, sqrt_info: FloatArray,
-    with_jacobian: bool = True,
+    with_jacobian: bool = True, world_R_frame: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
     """Residuals (E, 6) and Jacobians (E, 6, 6) w.r.t. the local updates of pose i and j.
 
-    ``sqrt_info`` is L (6, 6), shared, or one per edge (E, 6, 6)."""
+    ``sqrt_info`` is L (6, 6), shared, or one per edge (E, 6, 6). ``world_R_frame``
+    (E, 3, 3) is the fixed frame ``F_i`` of the translation part (the measured attitudes,
+    see the module docstring); None uses the estimate's ``R_i`` (the paper's)."""
     Ri = world_T_i.rotation_matrix()
-    t_ij = np.einsum("eji,ej->ei", Ri, world_T_j.translation - world_T_i.translation)
+    Rf = Ri if world_R_frame is None else world_R_frame
+    t_ij = np.einsum("eji,ej->ei", Rf, world_T_j.translation - world_T_i.translation)
     q_ij = quat_multiply(quat_conjugate(world_T_i.wxyz), world_T_j.wxyz)
     e_q = quat_multiply(measured_i_T_j.wxyz, quat_conjugate(q_ij))
     e_q = np.where(e_q[..., :1] < 0.0, -e_q, e_q)
@@ -50,9 +64,11 @@ def pairwise_residuals(
     Ji = np.zeros((E, 6, 6))
     Jj = np.zeros((E, 6, 6))
     RiT = np.swapaxes(Ri, -1, -2)
-    Ji[:, :3, :3] = RiT
-    Ji[:, :3, 3:] = -skew(t_ij)
-    Jj[:, :3, :3] = -RiT
+    RfT = np.swapaxes(Rf, -1, -2)
+    Ji[:, :3, :3] = RfT
+    if world_R_frame is None:
+        Ji[:, :3, 3:] = -skew(t_ij)
+    Jj[:, :3, :3] = -RfT
     M = e_q[:, 0, None, None] * np.eye(3) + skew(e_q[:, 1:])
     Ji[:, 3:, 3:] = M
     R_ij = RiT @ world_T_j.rotation_matrix()

@@ -35,15 +35,12 @@ class Projection:
         front: (N, M) in front of the camera and inside the trusted distortion range.
         inside: (N, M) front and inside the image.
         J: (N, M, 2, 13) d uv / d (dt [m], dphi [rad], theta), or None.
-        tangent: (N, M, 2) image direction of ``world_dir`` at each point (unit, px), or
-            None if no directions were given.
     """
 
     uv: FloatArray
     front: NDArray[np.bool_]
     inside: NDArray[np.bool_]
     J: FloatArray | None
-    tangent: FloatArray | None = None
 
 
 def project_points(
@@ -52,7 +49,6 @@ def project_points(
     world_p: FloatArray,
     J_theta: FloatArray | None,
     with_jacobian: bool = True,
-    world_dir: FloatArray | None = None,
     blend: tuple[FloatArray, FloatArray, FloatArray] | None = None,
 ) -> Projection:
     """Project world points (M, 3) (Jacobian (M, 3, 7)) into every keyframe of ``world_T_cam``;
@@ -60,10 +56,7 @@ def project_points(
 
     ``blend = (Ja, Jb, f)`` gives per-keyframe Jacobians of points on segments,
     ``(1 - f) Ja + f Jb`` with shared Ja, Jb (M, 3, 7) and fractions f (N, M), without
-    forming them (``J_theta`` is then ignored): much faster than (N, M, 3, 7) products.
-
-    If ``world_dir`` (M, 3) is given (and ``with_jacobian``), also returns the unit image
-    tangent of each point's direction (e.g. the model line it samples)."""
+    forming them (``J_theta`` is then ignored): much faster than (N, M, 3, 7) products."""
     R = world_T_cam.rotation_matrix()  # (N, 3, 3)
     t = world_T_cam.translation  # (N, 3)
     wp = world_p if world_p.ndim == 3 else world_p[None, :, :]
@@ -71,7 +64,6 @@ def project_points(
     uv, front, Juv = camera.project_unbounded(cam_p, with_jacobian=with_jacobian)
     inside = front & camera.in_image(uv)
     J = None
-    tangent = None
     if with_jacobian and Juv is not None:
         N, M = uv.shape[:2]
         J = np.empty((N, M, 2, 13))
@@ -90,11 +82,7 @@ def project_points(
             J[..., 6:13] = A @ J_theta
         else:
             J[..., 6:13] = 0.0
-        if world_dir is not None:
-            tg = np.einsum("nmij,mj->nmi", A, world_dir)
-            norm = np.linalg.norm(tg, axis=-1, keepdims=True)
-            tangent = np.where(norm > 1e-12, tg / np.maximum(norm, 1e-300), [1.0, 0.0])
-    return Projection(uv=uv, front=front, inside=inside, J=J, tangent=tangent)
+    return Projection(uv=uv, front=front, inside=inside, J=J)
 
 
 def _times_shared(A: FloatArray, Js: FloatArray) -> FloatArray:

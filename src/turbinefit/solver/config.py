@@ -37,16 +37,23 @@ class FitConfig:
     """Weight lambda_L of the line-model term."""
     lambda_pair: float = 1.0
     """Weight lambda of the pairwise (relative-pose) term."""
-    pixel_sigma: float = 2.0
-    """Correspondence noise [px]: correspondence residuals are divided by it."""
+    pixel_sigma: float = 0.5
+    """Correspondence noise [px]: correspondence residuals are divided by it (sub-pixel
+    peaks of sharp heat-maps; raise it for a coarse CNN)."""
     pair_sigma_t: float = 0.1
     """Default information matrix: std. dev. of a relative translation [m] per axis."""
     pair_sigma_r_deg: float = 0.1
     """Default information matrix: std. dev. of a relative rotation [deg] per axis."""
     pair_sigma_t_per_m: float = 0.02
-    """Added relative-translation std. dev. per metre of the measured step [m/m]: an
-    attitude error of the GPS/IMU rotates the whole step, so long steps are less certain
-    (sigma_t^2 = pair_sigma_t^2 + (pair_sigma_t_per_m * |step|)^2; 0 = the paper's fixed C)."""
+    """Added relative-translation std. dev. per metre of the measured step [m/m]: long
+    steps are less certain (sigma_t^2 = pair_sigma_t^2 + (pair_sigma_t_per_m * |step|)^2;
+    0 = the paper's fixed C)."""
+    pair_frame: Literal["measured", "estimated"] = "measured"
+    """Frame of the relative translation in the pairwise term: measured (the GPS/IMU
+    attitude of the first keyframe of each pair: the world-frame GPS step is compared, so
+    the IMU's attitude drift does not leak into the positions) or estimated (the current
+    estimate's attitude: the paper's residual, right for body-frame odometry such as VIO).
+    See turbinefit.costs.pairwise."""
     pair_information: tuple[float, ...] | None = None
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
@@ -54,20 +61,18 @@ class FitConfig:
     """Radius of the circular window searched for point correspondences [px]."""
     line_search: float = 20.0
     """Half-length of the perpendicular search for line correspondences [px]."""
+    line_residual: Literal["point", "normal"] = "point"
+    """Residual of a line correspondence (lines=corr): point, the 2-D distance to the
+    point found by the perpendicular search (the paper's E_unary(1), which also resists
+    sliding along the line), or normal, the distance along the search normal only."""
     corr_threshold: float = 0.3
     """Minimum heat-map value accepted as a correspondence."""
-    step_model: Literal["curvature", "gauss-newton"] = "gauss-newton"
-    """Step model of the interp terms: curvature (exact gradient, Gaussian-ridge curvature;
-    see costs.heatmap_cost.heatmap_model) or gauss-newton (plain J^T J of the residual)."""
     heatmap_floor: float = 0.05
     """Floor eps of the interp cost -log((G + eps) / (1 + eps)): heat-map values below it
     count as background (robustness to low-level CNN noise); >= 1e-4."""
-    heatmap_sigma: float = 2.0
-    """Width of heat-map peaks and ridges [px] assumed by the interp terms' step model (it
-    shapes LM's steps, not the cost or its optimum)."""
     border_margin: float = 8.0
     """Width over which heat-map evidence fades out at the image border [px]."""
-    robust: Literal["none", "huber", "cauchy"] = "none"
+    robust: Literal["none", "huber", "cauchy"] = "huber"
     """Robust loss on the image terms."""
     robust_scale: float = 2.0
     """Scale of the robust loss, in units of the whitened residual."""
@@ -77,13 +82,24 @@ class FitConfig:
     """Std. dev. of the absolute position priors when gauge=gps [m]."""
     initial_damping: float = 1e-4
     """Initial LM damping mu (relative to diag(J^T J)); larger = shorter first steps."""
-    stiff_first_round: float = 1000.0
-    """Pairwise weight multiplier of the first round (1 = off): the trajectory first moves
-    nearly rigidly onto the images with the turbine, then may bend (widens convergence)."""
+    warmup: bool = True
+    """Start with two correspondence stages (see turbinefit.solver.fit): *align*, on a
+    pose graph stiffened ``warmup_stiffness`` times, where the trajectory moves nearly
+    rigidly, with the turbine, onto the heat-maps; then *match*, on the normal graph.
+    Both use point and line correspondences (wide basins) with a Huber loss; the
+    configured cost then refines. Off: the configured cost from the start."""
+    warmup_stiffness: float = 1000.0
+    """Pairwise weight multiplier of the align stage."""
+    warmup_align_rounds: int = 3
+    """Correspondence rounds of the align stage (0 = skip it)."""
+    warmup_match_rounds: int = 6
+    """Correspondence rounds of the match stage (0 = skip it)."""
+    warmup_iterations: int = 4
+    """Levenberg-Marquardt iterations per warm-up round."""
+    warmup_pixel_sigma: float = 2.0
+    """Correspondence noise of the warm-up stages [px] (their Huber loss bends at 2x it)."""
     max_iterations: int = 15
-    """Levenberg-Marquardt iterations per round (rounds after the first)."""
-    first_round_iterations: int = 15
-    """Levenberg-Marquardt iterations of the first round."""
+    """Levenberg-Marquardt iterations per round of the configured cost."""
     max_rounds: int = 3
     """Rounds: correspondences and visible-part line samples are re-found after each."""
     function_tolerance: float = 1e-3
@@ -113,29 +129,38 @@ class FitConfig:
             raise bad("gauge", "must be first or gps")
         if self.line_sampling not in ("visible", "uniform"):
             raise bad("line_sampling", "must be visible or uniform")
-        if self.step_model not in ("curvature", "gauss-newton"):
-            raise bad("step_model", "must be curvature or gauss-newton")
+        if self.line_residual not in ("point", "normal"):
+            raise bad("line_residual", "must be point or normal")
+        if self.pair_frame not in ("measured", "estimated"):
+            raise bad("pair_frame", "must be measured or estimated")
         if self.robust not in ("none", "huber", "cauchy"):
             raise bad("robust", "must be none, huber or cauchy")
         if self.samples_per_line < 1:
             raise bad("samples_per_line", "must be at least 1")
-        for name in ("max_iterations", "first_round_iterations", "max_rounds",
-                     "stall_iterations"):
+        for name in ("max_iterations", "max_rounds", "stall_iterations",
+                     "warmup_iterations"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise bad(name, "must be a whole number >= 1")
         positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
-                    "line_search", "robust_scale", "gps_sigma", "heatmap_sigma")
+                    "line_search", "robust_scale", "gps_sigma",
+                    "warmup_pixel_sigma")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise bad(name, "must be a positive number")
         for name in ("lambda_points", "lambda_lines", "lambda_pair", "border_margin",
-                     "stiff_first_round",
+                     "warmup_stiffness",
                      "pair_sigma_t_per_m"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise bad(name, "must be a non-negative number")
+        for name in ("warmup_align_rounds", "warmup_match_rounds"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                raise bad(name, "must be a whole number >= 0")
+        if not isinstance(self.warmup, bool):
+            raise bad("warmup", "must be true or false")
         if not (isinstance(self.heatmap_floor, int | float) and 1e-4 <= self.heatmap_floor < 1):
             raise bad("heatmap_floor", "must be in [1e-4, 1)")
         if not 0 < self.corr_threshold < 1:

@@ -74,6 +74,37 @@ def _corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
     return flips / max(total, 1), shift
 
 
+@dataclass
+class _Stage:
+    name: str
+    problem: FitProblem
+    rounds: int
+    iterations: int
+
+
+def _stages(flight: Flight, cfg: FitConfig, problem: FitProblem,
+            keyframes: NDArray[np.int_] | None) -> list[_Stage]:
+    """The warm-up stages (see :class:`FitConfig`) and the configured cost."""
+    out: list[_Stage] = []
+    if cfg.warmup:
+        corr_cfg = dataclasses.replace(
+            cfg, points="corr" if cfg.points != "none" else "none",
+            lines="corr" if cfg.lines != "none" else "none",
+            pixel_sigma=cfg.warmup_pixel_sigma, robust="huber", robust_scale=2.0,
+            line_residual="normal")
+        moves_poses = cfg.mode != "turbine" and problem.num_keyframes > 1
+        if moves_poses and cfg.warmup_align_rounds > 0 and cfg.lambda_pair > 0:
+            align = dataclasses.replace(corr_cfg, lambda_pair=cfg.lambda_pair * cfg.warmup_stiffness)
+            out.append(_Stage("align", FitProblem(flight, align, keyframes),
+                              cfg.warmup_align_rounds, cfg.warmup_iterations))
+        if cfg.warmup_match_rounds > 0:
+            out.append(_Stage("match", FitProblem(flight, corr_cfg, keyframes),
+                              cfg.warmup_match_rounds, cfg.warmup_iterations))
+    out.append(_Stage("refine", problem, cfg.max_rounds if problem.needs_correspondences else 1,
+                      cfg.max_iterations))
+    return out
+
+
 def fit(
     flight: Flight,
     config: FitConfig | None = None,
@@ -98,50 +129,47 @@ def fit(
     kf = problem.keyframes
     poses = initial_poses if initial_poses is not None else flight.world_T_cam[kf]
     theta = (initial_turbine or flight.turbine).to_vector()
-    needs_corr = "corr" in (cfg.points, cfg.lines) or (
-        cfg.line_sampling == "visible" and cfg.lines != "none")
-    corr = problem.find_correspondences(poses, theta) if needs_corr else Correspondences()
-    lin = problem.linearize(poses, theta, corr)
-    initial_cost, initial_terms = lin.cost, dict(lin.terms)
+    stages = _stages(flight, cfg, problem, keyframes)
     history: list[IterationRecord] = []
     iterations = 0
     termination = "max_iterations"
     rounds = 0
-    stiff = None
-    if cfg.stiff_first_round > 1.0 and cfg.mode != "turbine" and problem.num_keyframes > 1:
-        # Round 1 on a stiffened pose graph: the trajectory first moves almost as a whole
-        # (with the turbine) onto the image evidence, before it may bend.
-        stiff = FitProblem(flight, dataclasses.replace(
-            cfg, lambda_pair=cfg.lambda_pair * cfg.stiff_first_round), keyframes)
-    mu = cfg.initial_damping
-    max_rounds = cfg.max_rounds if needs_corr else (2 if stiff is not None else 1)
-    for rounds in range(1, max_rounds + 1):
-        prob = stiff if (stiff is not None and rounds == 1) else problem
-        if prob is stiff:
+    # the configured cost at the start, for the summary (its correspondences are reused if
+    # the configured cost is also the first stage)
+    corr0 = (problem.find_correspondences(poses, theta) if problem.needs_correspondences
+             else Correspondences())
+    start = problem.linearize(poses, theta, corr0, with_jacobian=False)
+    lin = start
+    for stage in stages:
+        prob = stage.problem
+        if prob is problem and stage is stages[0]:
+            corr = corr0
+        else:
+            corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
+                    else Correspondences())
+        lin = prob.linearize(poses, theta, corr)
+        mu = cfg.initial_damping
+        for _ in range(stage.rounds):
+            rounds += 1
+            out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds,
+                                      mu=mu, max_iterations=stage.iterations,
+                                      history=history, callback=callback, stage=stage.name)
+            poses, theta, lin = out.poses, out.theta, out.linearization
+            mu = max(out.mu, cfg.initial_damping)
+            iterations += out.iterations
+            termination = out.termination
+            if not prob.needs_correspondences:
+                break
+            new_corr = prob.find_correspondences(poses, theta)
+            flips, shift = _corr_change(corr, new_corr)
+            corr = new_corr
             lin = prob.linearize(poses, theta, corr)
-        out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds, mu=mu,
-                                  max_iterations=cfg.max_iterations if rounds > 1 else
-                                  cfg.first_round_iterations, history=history,
-                                  callback=callback)
-        poses, theta, lin = out.poses, out.theta, out.linearization
-        mu = max(out.mu, cfg.initial_damping)
-        iterations += out.iterations
-        termination = out.termination
-        if not needs_corr:
-            if prob is stiff:
-                lin = problem.linearize(poses, theta, corr)
-                continue
-            break
-        new_corr = problem.find_correspondences(poses, theta)
-        flips, shift = _corr_change(corr, new_corr)
-        corr = new_corr
-        lin = problem.linearize(poses, theta, corr)
-        if prob is problem and flips < 0.005 and shift < 0.25:
-            break
+            if flips < 0.005 and shift < 0.25:
+                break
     turbine = TurbineParams.from_vector(theta).canonical()
     return FitResult(
-        world_T_cam=poses, turbine=turbine, initial_cost=initial_cost, final_cost=lin.cost,
-        initial_terms=initial_terms, final_terms=dict(lin.terms), iterations=iterations,
+        world_T_cam=poses, turbine=turbine, initial_cost=start.cost, final_cost=lin.cost,
+        initial_terms=dict(start.terms), final_terms=dict(lin.terms), iterations=iterations,
         rounds=rounds, termination=termination, time_s=time.perf_counter() - t0,
         num_residuals=lin.num_residuals, config=cfg, history=history,
     )

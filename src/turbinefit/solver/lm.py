@@ -37,6 +37,7 @@ class IterationRecord:
 
     round: int
     iteration: int
+    stage: str
     cost: float
     step_norm: float
     mu: float
@@ -79,6 +80,7 @@ def levenberg_marquardt(
     max_iterations: int | None = None,
     history: list[IterationRecord] | None = None,
     callback: Callable[[IterationRecord], None] | None = None,
+    stage: str = "refine",
 ) -> LMOutcome:
     """Run LM from ``(poses, theta)`` whose linearisation is ``lin``, correspondences fixed.
 
@@ -139,7 +141,7 @@ def levenberg_marquardt(
         else:
             mu *= nu
             nu *= 2.0
-        rec = IterationRecord(round_index, it, lin.cost, step_norm, mu, accepted,
+        rec = IterationRecord(round_index, it, stage, lin.cost, step_norm, mu, accepted,
                               time.perf_counter() - t0)
         if history is not None:
             history.append(rec)

@@ -3,16 +3,22 @@
 Unknowns: every keyframe pose ``world_T_cam[k]`` (6 local coordinates each, see
 :meth:`turbinefit.geometry.se3.SE3.retract`) and theta (7). Cost (Ceres' convention)::
 
-    E = 1/2 sum rho(|r_image|^2) + 1/2 sum |r_pair|^2 + 1/2 sum |r_prior|^2
+    E = 1/2 sum rho(s_image) + 1/2 sum |r_pair|^2 + 1/2 sum |r_prior|^2
 
-with the image residuals of :mod:`turbinefit.costs.heatmap_cost` (interp) and
-:mod:`turbinefit.costs.correspondence` (corr) for the 6 model points (weight lambda_P) and
-the line samples (lambda_L), the pairwise term of :mod:`turbinefit.costs.pairwise`
-(lambda) between consecutive keyframes, and, with ``gauge="gps"``, absolute position priors.
+with, per projected model point or line sample, ``s`` the heat-map cost of
+:mod:`turbinefit.costs.heatmap_cost` (interp) or the squared whitened distance to a
+correspondence of :mod:`turbinefit.costs.correspondence` (corr), weighted lambda_P for the
+6 model points and lambda_L for the line samples; the pairwise term of
+:mod:`turbinefit.costs.pairwise` (lambda) between consecutive keyframes; and, with
+``gauge="gps"``, absolute position priors.
 
-Everything is evaluated for all keyframes in one vectorised pass; the normal equations are
-accumulated per keyframe (6x6 pose blocks, 6x7 pose-turbine blocks, one 7x7 turbine block)
-so that cost and memory grow linearly with the number of keyframes.
+Each image term gives, per point, the gradient ``g`` and a positive semi-definite Hessian
+model ``H`` of its cost w.r.t. the point's pixel (exact Gauss-Newton for corr, see
+heatmap_cost for interp; a robust loss scales both by rho'(s)); with ``J = d uv / d x``
+the normal equations collect ``J^T H J`` and ``J^T g``. Everything is evaluated for all
+keyframes in one vectorised pass, accumulated per keyframe (6x6 pose blocks, 6x7
+pose-turbine blocks, one 7x7 turbine block), so that cost and memory grow linearly with
+the number of keyframes.
 
 Gauge: the pairwise term is relative only, so with theta free a global x-y shift and yaw
 of everything is unobservable (theta's base and heading absorb it). By default the first
@@ -29,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
-from turbinefit.costs.heatmap_cost import heatmap_model, heatmap_residuals
+from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import project_points
 from turbinefit.costs.robust import RobustLoss
@@ -51,6 +57,8 @@ class Correspondences:
     point_found: NDArray[np.bool_] | None = None
     line_target: FloatArray | None = None
     line_found: NDArray[np.bool_] | None = None
+    line_normal: FloatArray | None = None
+    """(N, M, 2) unit image normal each line target was searched along."""
     line_fractions: FloatArray | None = None
     """(N, 5, n) where each keyframe samples each line (visible-part sampling), or None."""
 
@@ -64,11 +72,11 @@ class Correspondences:
 
 @dataclass
 class Linearization:
-    """Cost and (undamped) normal equations at one state.
+    """Cost and (undamped) normal equations at one state (``J^T H J`` and ``J^T g``).
 
     ``D`` (N, 6, 6) / ``B`` (N-1, 6, 6) are the diagonal / sub-diagonal pose blocks of
-    J^T J, ``C`` (N, 6, 7) the pose-turbine blocks, ``E`` (7, 7) the turbine block,
-    ``g_p`` (N, 6) / ``g_t`` (7,) the gradient J^T r. Blocks of held variables are zero.
+    J^T H J, ``C`` (N, 6, 7) the pose-turbine blocks, ``E`` (7, 7) the turbine block,
+    ``g_p`` (N, 6) / ``g_t`` (7,) the gradient. Blocks of held variables are zero.
     """
 
     cost: float
@@ -102,6 +110,9 @@ class FitProblem:
         self.num_keyframes = int(self.keyframes.size)
         meas = flight.measurement_poses()[self.keyframes]
         self.measured_rel = relative_poses(meas[:-1], meas[1:])
+        #: (E, 3, 3) fixed frames of the pairwise translation residual, or None (estimated).
+        self.pair_frames: FloatArray | None = (
+            meas[:-1].rotation_matrix() if config.pair_frame == "measured" else None)
         if config.pair_information is not None:
             C = np.asarray(config.pair_information, dtype=np.float64).reshape(6, 6)
             C = 0.5 * (C + C.T)
@@ -130,6 +141,9 @@ class FitProblem:
         elif config.gauge == "first":
             self.fixed[0] = True
         self.optimise_theta = config.mode in ("joint", "turbine")
+        #: whether rounds need find_correspondences (corr terms or visible-part sampling)
+        self.needs_correspondences = "corr" in (config.points, config.lines) or (
+            config.line_sampling == "visible" and config.lines != "none")
 
     # ------------------------------------------------------------------------------
     def model(self, theta: FloatArray, with_jacobian: bool,
@@ -205,6 +219,7 @@ class FitProblem:
             usable = pr.inside & pr2.front & (norm[..., 0] > 1e-6)
             tangent = tangent / np.maximum(norm, 1e-9)
             normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
+            out.line_normal = normal
             out.line_target, out.line_found = find_line_correspondences(
                 self.flight.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
                 usable, cfg.line_search, cfg.corr_threshold)
@@ -212,50 +227,56 @@ class FitProblem:
 
     # ------------------------------------------------------------------------------
     def _image_block(self, kind: str, pts: FloatArray, Jpts: ThetaJacobian,
-                     world_dir: FloatArray | None, channels: NDArray[np.int_], lam: float,
-                     poses: SE3,
+                     channels: NDArray[np.int_], lam: float, poses: SE3,
                      target: FloatArray | None, found: NDArray[np.bool_] | None,
-                     with_jacobian: bool) -> tuple[FloatArray, FloatArray | None, float, int]:
-        """Robustified residual rows (N, R) and Jacobians (N, R, 13) of one image term."""
+                     normal: FloatArray | None,
+                     with_jacobian: bool) -> tuple[float, int, int, tuple[FloatArray, FloatArray,
+                                                                          FloatArray] | None]:
+        """One image term: cost, residual count, points in view, and with the Jacobian
+        ``(g, H, J)``: gradient (N, M, 2) and PSD Hessian model (N, M, 2, 2) of the cost
+        w.r.t. each point's pixel, and d uv / d x (N, M, 2, 13). Robustified."""
         cfg = self.config
         blend = Jpts if isinstance(Jpts, tuple) else None
         pr = project_points(self.flight.camera, poses, pts,
                             None if isinstance(Jpts, tuple) else Jpts, with_jacobian,
-                            world_dir=world_dir if kind == "interp" else None, blend=blend)
-        sw = math.sqrt(lam)
-        J: FloatArray | None
-        if kind == "interp" and with_jacobian and cfg.step_model == "curvature":
-            s, r, J = heatmap_model(self.flight.heatmaps, self.keyframes, channels, pr, lam,
-                                    cfg.border_margin, 1.0 / cfg.heatmap_sigma**2,
-                                    cfg.heatmap_floor)
+                            blend=blend)
+        g: FloatArray | None = None
+        H: FloatArray | None = None
+        if kind == "interp":
+            ht = heatmap_terms(self.flight.heatmaps, self.keyframes, channels, pr, lam,
+                               cfg.border_margin, cfg.heatmap_floor, with_jacobian)
+            s, g, H = ht.s, ht.g, ht.H
             n_in = int(pr.inside.sum())
-        elif kind == "interp":
-            r, J = heatmap_residuals(self.flight.heatmaps, self.keyframes, channels, pr, sw,
-                                     cfg.border_margin, cfg.heatmap_floor)
-            s = r * r
-            n_in = int(pr.inside.sum())
+            n_res = s.size
         else:
             assert target is not None and found is not None
             use = found & pr.front
-            r3 = (sw / cfg.pixel_sigma) * (pr.uv - target) * use[..., None]
-            s = np.sum(r3 * r3, axis=-1)
-            r = r3
-            J = None
-            if with_jacobian and pr.J is not None:
-                J = (sw / cfg.pixel_sigma) * pr.J * use[..., None, None]
+            info = lam / cfg.pixel_sigma**2
+            d = (pr.uv - target) * use[..., None]
+            if normal is None:  # 2-D distance to the found point (the paper's)
+                s = info * np.sum(d * d, axis=-1)
+                if with_jacobian:
+                    g = info * d
+                    H = np.zeros((*s.shape, 2, 2))
+                    H[..., 0, 0] = H[..., 1, 1] = info * use
+                n_res = 2 * s.size
+            else:  # distance along the search normal: free to slide along the line
+                dn = np.sum(d * normal, axis=-1)
+                s = info * dn * dn
+                if with_jacobian:
+                    g = (info * dn)[..., None] * normal
+                    H = (info * use)[..., None, None] * (normal[..., :, None] * normal[..., None, :])
+                n_res = s.size
             n_in = int(use.sum())
         rho, drho = self.loss.evaluate(s)
         cost = 0.5 * float(rho.sum())
-        if self.loss.name != "none":
-            scale = np.sqrt(drho)
-            r = r * (scale[..., None] if r.ndim == 3 else scale)
-            if J is not None:
-                J = J * (scale[..., None, None] if J.ndim == 4 else scale[..., None])
-        N = poses.batch_shape[0]
-        r = r.reshape(N, -1)
-        if J is not None:
-            J = J.reshape(N, -1, 13)
-        return r, J, cost, n_in
+        if not with_jacobian:
+            return cost, n_res, n_in, None
+        assert g is not None and H is not None and pr.J is not None
+        if self.loss.name != "none":  # iteratively reweighted: rho'(s) scales g and H
+            g = g * drho[..., None]
+            H = H * drho[..., None, None]
+        return cost, n_res, n_in, (g, H, pr.J)
 
     def linearize(self, poses: SE3, theta: FloatArray, corr: Correspondences,
                   with_jacobian: bool = True) -> Linearization:
@@ -264,45 +285,49 @@ class FitProblem:
         P, JP, S, JS = self.model(theta, with_jacobian, corr.line_fractions)
         terms: dict[str, float] = {}
         in_view: dict[str, int] = {}
-        rows: list[FloatArray] = []
-        jacs: list[FloatArray] = []
         blocks = (
-            ("points", cfg.points, P, JP, None, POINT_CHANNELS, cfg.lambda_points,
-             corr.point_target, corr.point_found),
-            ("lines", cfg.lines, S, JS, self._line_dirs(P), self._line_channels,
-             cfg.lambda_lines, corr.line_target, corr.line_found),
+            ("points", cfg.points, P, JP, POINT_CHANNELS, cfg.lambda_points,
+             corr.point_target, corr.point_found, None),
+            ("lines", cfg.lines, S, JS, self._line_channels, cfg.lambda_lines,
+             corr.line_target, corr.line_found,
+             corr.line_normal if cfg.line_residual == "normal" else None),
         )
-        for name, kind, pts, Jpts, dirs, ch, lam, tgt, fnd in blocks:
+        N = self.num_keyframes
+        JtHJ = np.zeros((N, 13, 13)) if with_jacobian else None
+        g_u = np.zeros((N, 13)) if with_jacobian else None
+        n_res = 0
+        for name, kind, pts, Jpts, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
-            r, J, c, n_in = self._image_block(kind, pts, Jpts, dirs, ch, lam, poses, tgt, fnd,
-                                              with_jacobian)
+            c, nr, n_in, der = self._image_block(kind, pts, Jpts, ch, lam, poses, tgt, fnd, nrm,
+                                                 with_jacobian)
             terms[name] = c
             in_view[name] = n_in
-            rows.append(r)
-            if J is not None:
-                jacs.append(J)
+            n_res += nr
+            if der is not None:
+                assert JtHJ is not None and g_u is not None
+                g, H, J = der
+                Jf = J.reshape(N, -1, 13)
+                HJ = (H @ J).reshape(N, -1, 13)
+                JtHJ += np.swapaxes(Jf, 1, 2) @ HJ
+                g_u += np.einsum("nri,nr->ni", Jf, g.reshape(N, -1))
         N = self.num_keyframes
         want_pair = N > 1 and cfg.lambda_pair > 0
         if want_pair:
             rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self.measured_rel,
-                                            self.sqrt_info, with_jacobian)
+                                            self.sqrt_info, with_jacobian, self.pair_frames)
             terms["pairwise"] = 0.5 * float(np.sum(rp * rp))
         use_prior = cfg.gauge == "gps" and cfg.mode != "turbine"
         if use_prior:
             rg = (poses.translation - self.prior_position) / cfg.gps_sigma
             terms["prior"] = 0.5 * float(np.sum(rg * rg))
         cost = float(sum(terms.values()))
-        n_res = sum(r.size for r in rows) + (6 * (N - 1) if want_pair else 0)
+        n_res += 6 * (N - 1) if want_pair else 0
         lin = Linearization(cost=cost, terms=terms, num_residuals=n_res, in_view=in_view)
         if not with_jacobian:
             return lin
-
-        r_u = np.concatenate(rows, axis=1)
-        J_u = np.concatenate(jacs, axis=1)
-        JtJ = np.matmul(np.swapaxes(J_u, 1, 2), J_u)  # (N, 13, 13)
-        g_u = np.einsum("nrp,nr->np", J_u, r_u)
-        D = JtJ[:, :6, :6].copy()
+        assert JtHJ is not None and g_u is not None
+        D = JtHJ[:, :6, :6].copy()
         g_p = g_u[:, :6].copy()
         B = np.zeros((max(N - 1, 0), 6, 6))
         if want_pair:
@@ -327,9 +352,9 @@ class FitProblem:
                 B[fx[:-1]] = 0.0
         lin.D, lin.B, lin.g_p = D, B, g_p
         if self.optimise_theta:
-            C = JtJ[:, :6, 6:].copy()
+            C = JtHJ[:, :6, 6:].copy()
             C[fx] = 0.0
             lin.C = C
-            lin.E = JtJ[:, 6:, 6:].sum(axis=0)
+            lin.E = JtHJ[:, 6:, 6:].sum(axis=0)
             lin.g_t = g_u[:, 6:].sum(axis=0)
         return lin
