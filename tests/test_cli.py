@@ -13,6 +13,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import re
 import shutil
 import struct
@@ -204,9 +205,6 @@ def test_simulate_overwrite_refuses_a_folder_that_is_not_a_flight(
     assert entries(tmp_path) == ["busy"]
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="BUG: simulate writes simulation.yaml, which is not in FLIGHT_ENTRIES, "
-                   "so --overwrite refuses the folder it wrote itself")
 def test_simulate_overwrite_replaces_its_own_output(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     dest = tmp_path / "flight"
@@ -221,10 +219,12 @@ def test_simulate_overwrite_replaces_its_own_output(tmp_path: Path,
     (["--preset", "nope"], [r"--preset", r"'nope'"]),
     (["--drift-m", "-1"], [r"drift_pos_m", r"non-negative"]),
     (["--turbine", "bogus"], [r"unknown turbine 'bogus'"]),
-    pytest.param(["--turbine-noise", "-1"], [r"turbine"], marks=pytest.mark.xfail(
-        strict=True, raises=ValueError, reason="BUG: --turbine-noise < 0 or nan is not validated by the CLI; "
-        "the ValueError from sim/noise.py escapes as a traceback")),
-], ids=["preset", "drift", "turbine", "turbine-noise"])
+    (["--turbine-noise", "-1"], [r"turbine"]),
+    (["--turbine-noise", "nan"], [r"--turbine-noise", r"non-negative", r"nan"]),
+    (["--heatmap-noise", "-0.5"], [r"--heatmap-noise", r"non-negative"]),
+    (["--heatmap-noise", "inf"], [r"--heatmap-noise", r"inf"]),
+], ids=["preset", "drift", "turbine", "turbine-noise", "turbine-noise-nan", "heatmap-noise",
+        "heatmap-noise-inf"])
 def test_simulate_bad_options(args: list[str], patterns: list[str], tmp_path: Path,
                               capsys: pytest.CaptureFixture[str]) -> None:
     dest = tmp_path / "flight"
@@ -234,15 +234,56 @@ def test_simulate_bad_options(args: list[str], patterns: list[str], tmp_path: Pa
     assert entries(tmp_path) == []
 
 
-@pytest.mark.xfail(strict=True, raises=NotADirectoryError,
-                   reason="BUG: simulate_folder calls out.iterdir() on an existing file: "
-                   "NotADirectoryError traceback instead of an InputError")
 def test_simulate_into_an_existing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     dest = tmp_path / "afile"
     dest.write_text("x")
     rc, out, err = run(capsys, "simulate", str(dest), "--keyframes", "2", "--quiet")
     assert_one_line_error(rc, out, err, re.escape(str(dest)))
     assert dest.read_text() == "x"
+
+
+@pytest.fixture
+def no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make simulating fail the test: a bad OUT_DIR must be refused before the (slow) work."""
+    import turbinefit.sim.scenario
+
+    def fail(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated although OUT_DIR is unusable")
+
+    monkeypatch.setattr(turbinefit.sim.scenario, "simulate_flight", fail)
+
+
+@pytest.mark.parametrize("where", ["under-a-file", "not-a-flight", "symlink"])
+def test_simulate_refuses_a_bad_out_dir_before_simulating(
+        where: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], no_simulation: None) -> None:
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "notes.txt").write_text("mine\n")
+    (tmp_path / "link").symlink_to(tmp_path / "busy")
+    dest, patterns = {
+        "under-a-file": (afile / "flight", [re.escape(str(afile)), r"not a directory"]),
+        "not-a-flight": (tmp_path / "busy", [r"notes\.txt", r"not part of a flight"]),
+        "symlink": (tmp_path / "link", [re.escape(str(tmp_path / "link")), r"symbolic link"]),
+    }[where]
+    before = digest(tmp_path)
+    rc, out, err = run(capsys, "simulate", str(dest), *SIM_ARGS, "--overwrite", "--quiet")
+    assert_one_line_error(rc, out, err, *patterns)
+    assert digest(tmp_path) == before
+    assert entries(tmp_path) == ["afile", "busy", "link"]
+
+
+def test_simulate_overwrite_refuses_a_fit_output(good_flight: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    fitted = tmp_path / "fit"
+    rc, _, err = run(capsys, "fit", str(good_flight), "--out", str(fitted), "--no-plots", "--quiet",
+                     "--max-iterations", "1")
+    assert rc == 0, err
+    before = digest(fitted)
+    rc, out, err = run(capsys, "simulate", str(fitted), "--keyframes", "2", "--width", "40",
+                       "--height", "30", "--overwrite", "--quiet")
+    assert_one_line_error(rc, out, err, re.escape(str(fitted)), r"not part of a flight")
+    assert digest(fitted) == before
 
 
 # --------------------------------------------------------------------------- fit: success
@@ -496,6 +537,8 @@ def test_help(command: str, must_mention: list[str], capsys: pytest.CaptureFixtu
     (["fit", "somewhere", "--out", "x", "--max-iterations", "0"], r"at least 1"),
     (["frobnicate"], r"invalid choice"),
     ([], r"COMMAND"),
+    (["simulate", "x", "--seed", "-1"], r"--seed: must be a non-negative whole number"),
+    (["simulate", "x", "--seed", "1.5"], r"--seed: expected a whole number"),
 ])
 def test_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
                       capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
@@ -631,9 +674,6 @@ def test_fit_refuses_output_over_its_input(where: str, overwrite: bool, flight: 
     assert entries(tmp_path) == ["flight"]
 
 
-@pytest.mark.xfail(strict=True, raises=NotADirectoryError,
-                   reason="BUG: fit_folder calls out_dir.iterdir() on an existing file: "
-                   "NotADirectoryError traceback instead of an InputError")
 def test_fit_out_is_an_existing_file(good_flight: Path, tmp_path: Path,
                                      capsys: pytest.CaptureFixture[str]) -> None:
     dest = tmp_path / "afile"
@@ -643,8 +683,149 @@ def test_fit_out_is_an_existing_file(good_flight: Path, tmp_path: Path,
     assert dest.read_text() == "x"
 
 
-_CONFIG_READ_BUG = ("BUG: load_fit_config only catches FileNotFoundError from read_text; other "
-                    "read errors escape as tracebacks")
+def test_fit_out_under_an_existing_file(good_flight: Path, tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str],
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    import turbinefit.pipeline
+
+    def fail(*args: object, **kwargs: object) -> None:
+        raise AssertionError("read the flight although --out is unusable")
+
+    monkeypatch.setattr(turbinefit.pipeline, "read_flight", fail)  # refused before any work
+    dest = tmp_path / "afile"
+    dest.write_text("x")
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(dest / "sub" / "fit"),
+                       "--no-plots", "--quiet")
+    assert_one_line_error(rc, out, err, re.escape(str(dest)), r"not a directory")
+    assert dest.read_text() == "x"
+    assert entries(tmp_path) == ["afile"]
+
+
+def test_fit_out_is_a_symlink_loop(good_flight: Path, tmp_path: Path,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(loop), "--no-plots", "--quiet")
+    assert_one_line_error(rc, out, err, re.escape(str(loop)), r"[Ss]ymlink loop")
+    assert loop.is_symlink()
+
+
+def test_fit_out_parent_not_writable(good_flight: Path, tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str],
+                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    # as root, a chmod does not deny anything: make os.access say what it says to a user
+    import turbinefit.io.atomic
+
+    real_access = os.access
+    parent = tmp_path / "readonly"
+    parent.mkdir()
+
+    def access(path: object, mode: int, **kwargs: object) -> bool:
+        if Path(str(path)) == parent:
+            return False
+        return real_access(path, mode, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(turbinefit.io.atomic.os, "access", access)
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(parent / "new" / "fit"),
+                       "--no-plots", "--quiet")
+    assert_one_line_error(rc, out, err, re.escape(str(parent)), r"no permission")
+    assert entries(tmp_path) == ["readonly"] and entries(parent) == []
+
+
+def _permissions_apply(folder: Path) -> bool:
+    """Whether a mode-000 file is unreadable here (not for root with CAP_DAC_OVERRIDE)."""
+    probe = folder / ".probe"
+    probe.write_text("x")
+    probe.chmod(0)
+    try:
+        probe.read_text()
+    except PermissionError:
+        return True
+    else:
+        return False
+    finally:
+        probe.chmod(0o600)
+        probe.unlink()
+
+
+@pytest.mark.parametrize("what", ["config", "out-parent", "flight"])
+def test_fit_permission_denied(what: str, flight: Path, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    if not _permissions_apply(tmp_path):
+        pytest.skip("file permissions do not apply to this user (root)")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("mode: joint\n")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    out_dir = ro / "fit" if what == "out-parent" else tmp_path / "fit"
+    locked = {"config": cfg, "out-parent": ro, "flight": flight}[what]
+    mode = 0o500 if what == "out-parent" else 0o000
+    locked.chmod(mode)
+    try:
+        rc, out, err = run(capsys, "fit", str(flight), "--out", str(out_dir), "--config", str(cfg),
+                           "--no-plots", "--quiet")
+    finally:
+        locked.chmod(0o700 if locked.is_dir() else 0o600)
+    assert_one_line_error(rc, out, err, re.escape(str(locked)))
+    assert not out_dir.exists()
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_fit_refuses_output_over_its_config_file(overwrite: bool, good_flight: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    prev = tmp_path / "prev"
+    common = ["fit", str(good_flight), "--no-plots", "--quiet", "--max-iterations", "1"]
+    assert run(capsys, *common, "--out", str(prev))[0] == 0
+    before = digest(prev)
+    rc, out, err = run(capsys, *common, "--out", str(prev), "--config", str(prev / "config.yaml"),
+                       *(["--overwrite"] if overwrite else []))
+    assert_one_line_error(rc, out, err, re.escape(str(prev)), r"input", r"config\.yaml")
+    assert digest(prev) == before
+    assert entries(tmp_path) == ["prev"]
+
+
+@pytest.mark.parametrize("kind", ["foreign-file", "flight-folder", "sub-folder"])
+def test_fit_overwrite_refuses_a_folder_that_is_not_a_fit_output(
+        kind: str, good_flight: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dest = tmp_path / "dest"
+    if kind == "flight-folder":
+        shutil.copytree(good_flight, dest)
+        culprit = "camera.yaml|groundtruth.txt|heatmaps|keyframes.txt|simulation.yaml|turbine"
+    else:
+        dest.mkdir()
+        (dest / "summary.json").write_text("{}")  # a fit output, and one thing that is not
+        if kind == "foreign-file":
+            (dest / "thesis.tex").write_text("mine\n")
+            culprit = r"thesis\.tex"
+        else:
+            (dest / "scene.png").mkdir()
+            (dest / "scene.png" / "keep.txt").write_text("mine\n")
+            culprit = r"scene\.png"
+    before = digest(dest)
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(dest), "--no-plots", "--quiet",
+                       "--overwrite")
+    assert_one_line_error(rc, out, err, re.escape(str(dest)), r"refusing to overwrite", culprit,
+                          r"not an output of turbinefit fit")
+    assert digest(dest) == before
+    assert entries(tmp_path) == ["dest"]
+
+
+def test_fit_write_failure_leaves_nothing(good_flight: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str],
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    import turbinefit.pipeline
+
+    def full_disk(out: Path, *args: object) -> None:
+        (out / "scene.png").write_bytes(b"half a plot")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(turbinefit.pipeline, "write_plots", full_disk)
+    out_dir = tmp_path / "fit"
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(out_dir), "--quiet",
+                       "--max-iterations", "1")
+    assert_one_line_error(rc, out, err, re.escape(str(out_dir)), r"No space left on device")
+    assert entries(tmp_path) == []  # neither the output nor its temporary folder
+
 
 BAD_CONFIGS: dict[str, tuple[bytes | None, list[str]]] = {
     "unknown-option": (b"mode: joint\nbogus_option: 3\n", [r"unknown fit option", r"bogus_option"]),
@@ -653,19 +834,23 @@ BAD_CONFIGS: dict[str, tuple[bytes | None, list[str]]] = {
     "not-a-mapping": (b"- 1\n- 2\n", [r"mapping"]),
     "malformed-yaml": (b"mode: joint\nlines: [interp\n", [r"cfg\.yaml:\d+:", r"malformed YAML"]),
     "missing": (None, [r"not found"]),
+    "duplicate-key": (b"mode: joint\nmode: pose\n", [r"cfg\.yaml:2:", r"duplicate key 'mode'"]),
+    "key-not-a-string": (b"1: 2\n", [r"option name 1", r"not a string"]),
+    "int-option-not-whole": (b"samples_per_line: 2.5\n", [r"samples_per_line", r"whole number"]),
+    "int-option-bool": (b"samples_per_line: true\n", [r"samples_per_line", r"whole number"]),
+    "float-option-text": (b"lambda_pair: lots\n", [r"lambda_pair", r"must be a number", r"'lots'"]),
+    "pair-information-text": (b"pair_information: '" + b"1" * 36 + b"'\n",
+                              [r"pair_information", r"list of 36 numbers"]),
+    "pair-information-item": (b"pair_information: [1, x]\n", [r"pair_information\[1\]", r"number"]),
+    "geometry-not-a-mapping": (b"geometry: 5\n", [r"geometry", r"mapping", r"shaft_tilt"]),
+    "geometry-null": (b"geometry: null\n", [r"geometry", r"mapping"]),
+    "geometry-nan": (b"geometry: {blade_cone: .nan}\n", [r"geometry\.blade_cone", r"finite"]),
+    "geometry-bool": (b"geometry: {hub_offset: yes}\n", [r"geometry\.hub_offset", r"True"]),
+    "geometry-unknown": (b"geometry: {rotor_tilt: 0.1}\n", [r"unknown geometry option", r"rotor_tilt"]),
 }
 
 
-@pytest.mark.parametrize("case", [
-    *BAD_CONFIGS,
-    pytest.param("directory", marks=pytest.mark.xfail(
-        strict=True, raises=IsADirectoryError, reason=_CONFIG_READ_BUG)),
-    pytest.param("not-utf8", marks=pytest.mark.xfail(
-        strict=True, raises=UnicodeDecodeError, reason=_CONFIG_READ_BUG)),
-    pytest.param("geometry-not-a-number", marks=pytest.mark.xfail(
-        strict=True, raises=TypeError, reason="BUG: FitConfig does not validate geometry; a string "
-        "shaft_tilt fails inside the solver with a TypeError traceback")),
-])
+@pytest.mark.parametrize("case", [*BAD_CONFIGS, "directory", "not-utf8", "geometry-not-a-number"])
 def test_fit_bad_config_file(case: str, good_flight: Path, tmp_path: Path,
                              capsys: pytest.CaptureFixture[str]) -> None:
     cfg = tmp_path / "cfg.yaml"
@@ -676,7 +861,7 @@ def test_fit_bad_config_file(case: str, good_flight: Path, tmp_path: Path,
         cfg.write_bytes(b"\xff\xfe mode: joint\n")
     elif case == "geometry-not-a-number":
         cfg.write_bytes(b"geometry: {shaft_tilt: abc}\n")
-        patterns = [r"shaft_tilt"]
+        patterns = [r"shaft_tilt", r"cfg\.yaml", r"geometry\.shaft_tilt", r"finite real number", r"'abc'"]
     else:
         content, more = BAD_CONFIGS[case]
         if content is not None:
@@ -688,6 +873,41 @@ def test_fit_bad_config_file(case: str, good_flight: Path, tmp_path: Path,
                        "--no-plots", "--quiet")
     assert_one_line_error(rc, out, err, *patterns)
     assert entries(tmp_path) == existing  # out_dir not created
+
+
+def test_fit_unreadable_config_file(good_flight: Path, tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str],
+                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("mode: joint\n")
+    real_read_text = Path.read_text
+
+    def read_text(self: Path, *args: object, **kwargs: object) -> str:
+        if self == cfg:
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_read_text(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Path, "read_text", read_text)
+    rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(tmp_path / "fit"),
+                       "--config", str(cfg), "--no-plots", "--quiet")
+    assert_one_line_error(rc, out, err, re.escape(str(cfg)), r"cannot read", r"Permission denied")
+    assert entries(tmp_path) == ["cfg.yaml"]
+
+
+def test_load_fit_config_accepts_numbers_yaml_reads_as_text(tmp_path: Path) -> None:
+    # YAML 1.1 (PyYAML) reads 1e-12 (no dot) as a string; a hand-written config has them
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("gradient_tolerance: 1e-12\nlambda_pair: 2\ngeometry: {shaft_tilt: 0.087, "
+                   "hub_offset: 2}\n")
+    loaded = load_fit_config(cfg)
+    assert loaded.gradient_tolerance == 1e-12
+    assert loaded.lambda_pair == 2.0
+    assert (loaded.geometry.shaft_tilt, loaded.geometry.hub_offset) == (0.087, 2.0)
+    assert isinstance(loaded.geometry.hub_offset, float)
+    # and what fit writes reads back
+    again = tmp_path / "again.yaml"
+    again.write_text(yaml.safe_dump(loaded.to_dict(), sort_keys=False))
+    assert load_fit_config(again) == loaded
 
 
 @pytest.mark.parametrize(("args", "patterns"), [

@@ -34,6 +34,7 @@ from turbinefit.io import (
     write_tum,
     write_turbine_yaml,
 )
+from turbinefit.io.atomic import check_output_dir
 from turbinefit.turbine.model import TurbineParams
 
 
@@ -487,6 +488,37 @@ def test_read_flight_missing_folder_and_files(tmp_path: Path, flight_dir: Path) 
         read_flight(flight_dir)
 
 
+def test_read_flight_heatmaps_not_a_directory(tmp_path: Path, flight_dir: Path) -> None:
+    hm = flight_dir / "heatmaps"
+    hm.rename(tmp_path / "hm")
+    hm.write_text("x")
+    with raises_input_error(hm) as info:
+        read_flight(flight_dir)
+    assert "not a directory" in str(info.value)
+    with raises_input_error(hm) as info:
+        read_heatmaps(hm, [0.0], H, W)
+    assert "not a directory" in str(info.value)
+
+
+@pytest.mark.parametrize("name", ["camera.yaml", "heatmaps", "odometry.txt", "."])
+def test_read_flight_inaccessible_path_is_an_input_error(flight_dir: Path, name: str,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    # what os.stat says below a directory without search (x) permission; as root a chmod
+    # would not deny anything, so fake it
+    target = flight_dir if name == "." else flight_dir / name
+    real_stat = os.stat
+
+    def stat(path, *args, **kwargs):
+        if isinstance(path, str | os.PathLike) and Path(path) == target:
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_stat(path, *args, **kwargs)
+
+    monkeypatch.setattr(flight_folder.os, "stat", stat)
+    with raises_input_error(target) as info:
+        read_flight(flight_dir)
+    assert "cannot access: Permission denied" in str(info.value)
+
+
 def test_read_flight_errors_inside_files_name_them(flight_dir: Path) -> None:
     kf = flight_dir / "keyframes.txt"
     lines = kf.read_text().splitlines()
@@ -628,6 +660,39 @@ def test_write_flight_overwrite_refuses_foreign_folder(tmp_path: Path, flight_di
         write_flight(make_flight(), flight_dir, overwrite=True)
 
 
+def test_write_flight_extra_texts_are_written_and_replaceable(tmp_path: Path) -> None:
+    folder = tmp_path / "flight"
+    write_flight(make_flight(n=2), folder, extra_texts={"simulation.yaml": "seed: 1\n"})
+    assert (folder / "simulation.yaml").read_text() == "seed: 1\n"
+    assert_flights_equal(read_flight(folder), make_flight(n=2))  # ignored on reading
+    # a folder write_flight wrote, simulation.yaml included, is a flight folder to replace
+    assert "simulation.yaml" in flight_folder.FLIGHT_ENTRIES
+    flight_folder.check_flight_destination(folder, overwrite=True)
+    write_flight(make_flight(n=3, seed=1), folder, overwrite=True,
+                 extra_texts={"simulation.yaml": "seed: 2\n"})
+    assert (folder / "simulation.yaml").read_text() == "seed: 2\n"
+    write_flight(make_flight(n=3, seed=1), folder, overwrite=True)  # without one: removed
+    assert not (folder / "simulation.yaml").exists()
+    assert leftovers(tmp_path) == []
+    # only names the guard accepts, and not the flight's own files
+    for name in ("notes.txt", "camera.yaml", "heatmaps"):
+        with pytest.raises(ValueError, match="extra_texts"):
+            write_flight(make_flight(n=2), tmp_path / "other", extra_texts={name: "x"})
+    assert not (tmp_path / "other").exists()
+
+
+def test_check_flight_destination(tmp_path: Path, flight_dir: Path) -> None:
+    flight_folder.check_flight_destination(tmp_path / "new")  # missing: fine
+    with raises_input_error(flight_dir) as info:
+        flight_folder.check_flight_destination(flight_dir, overwrite_hint="use --overwrite")
+    assert str(info.value).endswith("not empty (use --overwrite)")
+    flight_folder.check_flight_destination(flight_dir, overwrite=True)
+    (flight_dir / "notes.md").write_text("mine")
+    with raises_input_error(flight_dir) as info:
+        flight_folder.check_flight_destination(flight_dir, overwrite=True)
+    assert "'notes.md' is not part of a flight folder" in str(info.value)
+
+
 @pytest.mark.parametrize("existing", [False, True])
 def test_write_flight_failure_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                              existing: bool) -> None:
@@ -711,6 +776,52 @@ def test_atomic_output_dir(tmp_path: Path) -> None:
     with raises_input_error(link), atomic_output_dir(link, overwrite=True):
         pass
     assert leftovers(tmp_path) == []
+
+
+def test_check_output_dir_refuses_what_atomic_output_dir_would(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    check_output_dir(tmp_path / "new" / "deeper")  # missing parents are created later
+    (tmp_path / "empty").mkdir()
+    check_output_dir(tmp_path / "empty")
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    with raises_input_error(afile) as info:
+        check_output_dir(afile, overwrite=True)
+    assert "not a directory" in str(info.value)
+    for below in (afile / "out", afile / "a" / "b"):  # the parent is a file: refused up front
+        with raises_input_error(afile) as info:
+            check_output_dir(below)
+        assert "not a directory" in str(info.value)
+        with raises_input_error(afile), atomic_output_dir(below):
+            pass
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    with raises_input_error(loop) as info:
+        check_output_dir(loop, overwrite=True)
+    assert "symbolic link" in str(info.value)
+
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "a.txt").write_text("1")
+    with raises_input_error(busy) as info:
+        check_output_dir(busy, overwrite_hint="use --force")
+    assert str(info.value).endswith("not empty (use --force)")
+    check_output_dir(busy, overwrite=True)
+
+    def unreadable(path: Path) -> str | None:
+        raise PermissionError(13, "Permission denied", str(path / "sub"))
+
+    with raises_input_error(busy) as info:
+        check_output_dir(busy, overwrite=True, may_replace=unreadable)
+    assert "Permission denied" in str(info.value)
+
+    import turbinefit.io.atomic as atomic
+
+    monkeypatch.setattr(atomic.os, "access", lambda path, mode, **kw: False)  # a read-only parent
+    with raises_input_error(tmp_path) as info:
+        check_output_dir(tmp_path / "new")
+    assert "no permission" in str(info.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "busy", "empty", "loop"]
 
 
 def test_input_error_is_one_line_with_path(tmp_path: Path) -> None:

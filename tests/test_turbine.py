@@ -101,3 +101,18 @@ def test_line_samples_lie_on_lines_with_jacobian():
 def test_rejects_non_finite():
     with pytest.raises(ValueError):
         TurbineParams(0, 0, float("nan"), 0, 5, 0, 50)
+
+
+def test_geometry_accepts_real_numbers_as_floats():
+    g = TurbineGeometry(np.float32(0.5), 1, np.int64(-2))
+    assert (g.shaft_tilt, g.blade_cone, g.hub_offset) == (0.5, 1.0, -2.0)
+    assert all(type(v) is float for v in (g.shaft_tilt, g.blade_cone, g.hub_offset))
+    assert g == TurbineGeometry(0.5, 1.0, -2.0)
+
+
+@pytest.mark.parametrize("field", ["shaft_tilt", "blade_cone", "hub_offset"])
+@pytest.mark.parametrize("value", ["abc", "0.1", True, None, [0.1], float("nan"), float("inf"),
+                                   np.bool_(True), 1j])
+def test_geometry_rejects_non_numbers_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=rf"^geometry\.{field}: must be a finite real number"):
+        TurbineGeometry(**{field: value})

@@ -24,6 +24,7 @@ Flight folder (input of fit, output of simulate):
   heatmaps/<t %.6f>.npy       float32 (7, H, W): point_base, point_tower_top, point_hub,
                               point_blade_tip, line_tower, line_nacelle, line_blade
   groundtruth.txt, turbine_groundtruth.yaml   optional ground truth
+  simulation.yaml             written by simulate (its settings); not read by fit
 """
 
 
@@ -34,6 +35,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
+
+
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative whole number, got {v}")
     return v
 
 
@@ -65,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("out_dir", metavar="OUT_DIR", type=Path, nargs="?",
                    help="flight folder to create")
     s.add_argument("--keyframes", type=_positive_int, default=200, help="number of keyframes")
-    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same flight)")
+    s.add_argument("--seed", type=_seed, default=0,
+                   help="random seed, >= 0 (same seed, same flight)")
     s.add_argument("--preset", default="default",
                    help="simulation preset: default, noiseless, exact, hard, distorted "
                    "(see --list-presets)")
@@ -85,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--second-turbine", action="store_true",
                    help="add a second turbine in view (false responses)")
     s.add_argument("--list-presets", action="store_true", help="list presets and exit")
-    s.add_argument("--overwrite", action="store_true", help="replace OUT_DIR if it exists")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it exists (only if it holds nothing but a flight)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
 
     # ---- fit --------------------------------------------------------------------
@@ -143,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
     opt("--max-rounds", "max_rounds", "rounds (correspondences re-found after each)",
         type=_positive_int)
     f.add_argument("--no-plots", action="store_true", help="skip the figures")
-    f.add_argument("--overwrite", action="store_true", help="replace OUT_DIR if it exists")
+    f.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return p
 
@@ -202,7 +216,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
     try:
         report = fit_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
-                            overwrite=args.overwrite, progress=progress)
+                            overwrite=args.overwrite, progress=progress,
+                            config_path=args.config)
     finally:
         if bar is not None:
             bar.close()
@@ -266,6 +281,11 @@ def _sim_config(args: argparse.Namespace) -> Any:
     for key in ("drift_pos_m", "drift_rot_deg"):
         if key in over and not (math.isfinite(over[key]) and over[key] >= 0):
             raise InputError(f"must be a non-negative number, got {over[key]}", field=key)
+    # sim.noise / sim.render would fail (turbine) or silently ignore (heat-maps) these
+    for flag, value in (("--turbine-noise", args.turbine_noise),
+                        ("--heatmap-noise", args.heatmap_noise)):
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise InputError(f"must be a non-negative number, got {value}", field=flag)
     try:
         cfg = dataclasses.replace(base, **over)
         HeatmapNoise(**dataclasses.asdict(cfg.heatmap_noise))

@@ -23,7 +23,9 @@ the temporary directory are not individually ``fsync``-ed (writing thousands of 
 must stay fast), so after a power loss the renamed directory's contents are up to the OS.
 
 Also :func:`read_text`, the one place where a failing *read* of a text file becomes an
-:class:`InputError` naming the file.
+:class:`InputError` naming the file, and :func:`check_output_dir`, the destination check of
+:func:`atomic_output_dir` on its own, so that a job can refuse a bad output path before it
+spends minutes computing what it would write there.
 
 All failures are :class:`turbinefit.errors.InputError` naming the path concerned.
 """
@@ -33,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+import stat
 import uuid
 import warnings
 from collections.abc import Callable, Iterator
@@ -51,6 +54,9 @@ def _sibling(path: Path, tag: str) -> Path:
 def _make_parent(path: Path) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError as e:  # mkdir(exist_ok=True) on something that is not a directory
+        raise InputError(f"not a directory, cannot create {path.name!r} in it",
+                         path=path.parent) from e
     except OSError as e:
         raise InputError(f"cannot create directory: {e.strerror or e}", path=path.parent) from e
 
@@ -77,7 +83,11 @@ def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:
     (``0o666`` minus the umask). Returns the path written.
     """
     p = Path(path)
-    if p.is_dir():
+    try:
+        is_dir = p.is_dir()
+    except OSError as e:  # e.g. a parent directory that may not be searched
+        raise InputError(f"cannot access: {e.strerror or e}", path=p) from e
+    if is_dir:
         raise InputError("is a directory, cannot write a file there", path=p)
     _make_parent(p)
     tmp = _sibling(p, "tmp")
@@ -106,27 +116,74 @@ def write_text_atomic(path: StrPath, text: str, fsync: bool = True) -> Path:
     return write_bytes_atomic(path, text.encode("utf-8"), fsync=fsync)
 
 
-def _check_destination(path: Path, overwrite: bool,
-                       may_replace: Callable[[Path], str | None] | None) -> None:
-    if path.is_symlink():
-        raise InputError("output path is a symbolic link; refusing to replace it", path=path)
-    if not path.exists():
-        return
-    if not path.is_dir():
-        raise InputError("output path exists and is not a directory", path=path)
+def _check_parent(path: Path) -> None:
+    """Refuse ``path`` early if it could not be created (or renamed into place): its nearest
+    existing ancestor must be a directory that we may write to."""
+    parent = path.parent
+    while True:
+        try:
+            st = os.stat(parent)
+        except (FileNotFoundError, NotADirectoryError):
+            if parent.parent == parent:  # pragma: no cover - the root always exists
+                return
+            parent = parent.parent
+            continue
+        except OSError as e:
+            raise InputError(f"cannot access: {e.strerror or e}", path=parent) from e
+        break
+    if not stat.S_ISDIR(st.st_mode):
+        raise InputError(f"not a directory, cannot create the output {str(path)!r} in it",
+                         path=parent)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"no permission to create the output {str(path)!r} in this directory",
+                         path=parent)
+
+
+def check_output_dir(path: StrPath, overwrite: bool = False,
+                     may_replace: Callable[[Path], str | None] | None = None,
+                     overwrite_hint: str = "pass overwrite=True to replace it") -> None:
+    """Refuse ``path`` as the destination of :func:`atomic_output_dir` with the same rules.
+
+    A missing path or an empty directory is fine; a symbolic link or anything that is not a
+    directory is refused; a non-empty directory is refused unless ``overwrite`` is true and
+    ``may_replace`` (if given) returns None for it. ``overwrite_hint`` ends the message for a
+    non-empty directory (a command line says which option to use). Paths that cannot be
+    inspected (permissions, symbolic-link loops) are refused too, as is a destination whose
+    nearest existing ancestor is not a directory or is not writable (so the folder could
+    not be created or moved into place).
+
+    Raises:
+        InputError: naming ``path``.
+    """
+    p = Path(path)
     try:
-        non_empty = any(path.iterdir())
+        st = os.lstat(p)
+    except (FileNotFoundError, NotADirectoryError):
+        _check_parent(p)
+        return
     except OSError as e:
-        raise InputError(f"cannot list output directory: {e.strerror or e}", path=path) from e
+        raise InputError(f"cannot access output path: {e.strerror or e}", path=p) from e
+    _check_parent(p)
+    if stat.S_ISLNK(st.st_mode):
+        raise InputError("output path is a symbolic link; refusing to replace it", path=p)
+    if not stat.S_ISDIR(st.st_mode):
+        raise InputError("output path exists and is not a directory", path=p)
+    try:
+        non_empty = any(p.iterdir())
+    except OSError as e:
+        raise InputError(f"cannot list output directory: {e.strerror or e}", path=p) from e
     if not non_empty:
         return
     if not overwrite:
-        raise InputError("output directory exists and is not empty (pass overwrite=True to "
-                         "replace it)", path=path)
+        raise InputError(f"output directory exists and is not empty ({overwrite_hint})", path=p)
     if may_replace is not None:
-        reason = may_replace(path)
+        try:
+            reason = may_replace(p)
+        except OSError as e:
+            raise InputError(f"cannot inspect output directory: {e.strerror or e}",
+                             path=p) from e
         if reason is not None:
-            raise InputError(f"refusing to overwrite: {reason}", path=path)
+            raise InputError(f"refusing to overwrite: {reason}", path=p)
 
 
 def _move_into_place(tmp: Path, path: Path) -> None:
@@ -182,7 +239,7 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
         renamed to ``path`` when the block exits normally and deleted when it raises.
     """
     p = Path(path)
-    _check_destination(p, overwrite, may_replace)
+    check_output_dir(p, overwrite, may_replace)
     _make_parent(p)
     while True:
         tmp = _sibling(p, "tmp")
@@ -196,7 +253,7 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
                              path=p.parent) from e
     try:
         yield tmp
-        _check_destination(p, overwrite, may_replace)
+        check_output_dir(p, overwrite, may_replace)
         _move_into_place(tmp, p)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -58,7 +58,9 @@ from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
 # --------------------------------------------------------------------------- YAML helpers
 
 _OPENCV_TAG = re.compile(r"!!opencv-(?:nd-)?matrix\b")
-_FLOAT_TEXT = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: A decimal number as text, e.g. ``1e-5``, which YAML 1.1 (PyYAML) reads as a string.
+FLOAT_TEXT = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+_FLOAT_TEXT = FLOAT_TEXT
 
 
 class _StrictLoader(yaml.SafeLoader):
@@ -81,6 +83,12 @@ def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode) -> dict[An
 
 
 _StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def safe_load_strict(text: str) -> Any:
+    """``yaml.safe_load`` that also refuses duplicate mapping keys (a
+    ``yaml.constructor.ConstructorError`` marked at the second key)."""
+    return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
 
 
 def load_yaml_mapping(path: StrPath) -> dict[str, Any]:

@@ -10,6 +10,7 @@ Layout (names exact)::
         odometry.txt                TUM, same timestamps                    (optional)
         groundtruth.txt             TUM, ground-truth world_T_cam           (optional)
         turbine_groundtruth.yaml    ground-truth turbine parameters         (optional)
+        simulation.yaml             settings of ``turbinefit simulate``     (optional, not read)
 
 * Poses: camera-to-world ``world_T_cam`` (OpenCV camera frame, world z up), metres; TUM
   files store quaternions xyzw (see :mod:`turbinefit.io.tum`).
@@ -37,7 +38,10 @@ heat-map file, a heat-map of the wrong shape or dtype, or a file that is not a v
 :func:`write_flight` writes the whole folder atomically (see
 :func:`turbinefit.io.atomic.atomic_output_dir`): into a hidden temporary sibling, renamed
 into place at the end; an existing non-empty folder is refused unless ``overwrite=True``,
-and even then only if it holds nothing but flight-folder entries.
+and even then only if it holds nothing but flight-folder entries (:data:`FLIGHT_ENTRIES`,
+with ``.npy`` files only in ``heatmaps/``), so ``overwrite`` on a wrong path never deletes
+anything that is not a turbinefit flight. :func:`check_flight_destination` applies the same
+check up front.
 """
 
 from __future__ import annotations
@@ -46,6 +50,8 @@ import errno
 import io
 import math
 import os
+import stat
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +62,7 @@ from turbinefit.errors import InputError
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
-from turbinefit.io.atomic import StrPath, atomic_output_dir, write_text_atomic
+from turbinefit.io.atomic import StrPath, atomic_output_dir, check_output_dir, write_text_atomic
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
 from turbinefit.io.tum import TumTrajectory, format_tum, read_tum_lines
 from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
@@ -69,9 +75,14 @@ TURBINE_FILE = "turbine.yaml"
 HEATMAP_DIR = "heatmaps"
 GT_POSES_FILE = "groundtruth.txt"
 GT_TURBINE_FILE = "turbine_groundtruth.yaml"
-#: Every entry a flight folder may contain.
+#: Written by ``turbinefit simulate`` (the simulation settings); never read.
+SIMULATION_FILE = "simulation.yaml"
+#: Every entry a flight folder may contain (what ``write_flight(overwrite=True)`` may replace).
 FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
-                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
+                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE, SIMULATION_FILE})
+#: The entries :func:`write_flight` writes from the Flight itself (not as ``extra_texts``).
+_DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
+                           HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
 #: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
 TIMESTAMP_TOLERANCE = 1e-6
 
@@ -189,8 +200,11 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int, width: in
     folder = Path(folder)
     t = np.asarray(timestamps, dtype=np.float64)
     lines = None if keyframe_lines is None else np.asarray(keyframe_lines).tolist()
-    if not folder.is_dir():
+    kind = _kind(folder)
+    if kind is None:
         raise InputError("heat-map directory not found", path=folder)
+    if kind != "dir":
+        raise InputError("not a directory (expected the heat-map folder)", path=folder)
     shape = (NUM_CHANNELS, int(height), int(width))
     names = [heatmap_filename(x) for x in t.tolist()]
     if len(set(names)) != len(names):
@@ -239,8 +253,21 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int, width: in
 
 # --------------------------------------------------------------------------- flight
 
+def _kind(path: Path) -> str | None:
+    """``"dir"``, ``"file"`` (anything else that exists) or None (missing), following
+    symbolic links; a path that cannot be inspected (a parent directory without search
+    permission, a symbolic-link loop) is an InputError, not a "missing" or a traceback."""
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as e:
+        raise InputError(f"cannot access: {e.strerror or e}", path=path) from e
+    return "dir" if stat.S_ISDIR(st.st_mode) else "file"
+
+
 def _required(path: Path) -> Path:
-    if not path.exists():
+    if _kind(path) is None:
         raise InputError("required file of a flight folder is missing", path=path)
     return path
 
@@ -274,26 +301,30 @@ def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
         InputError: naming the file (and line or field) of the first problem found.
     """
     root = Path(folder)
-    if not root.exists():
+    kind = _kind(root)
+    if kind is None:
         raise InputError("flight folder not found", path=root)
-    if not root.is_dir():
+    if kind != "dir":
         raise InputError("not a directory (expected a flight folder)", path=root)
     camera = read_camera_yaml(_required(root / CAMERA_FILE))
     kf_path = _required(root / KEYFRAMES_FILE)
     keyframes = read_tum_lines(kf_path)
     turbine = read_turbine_yaml(_required(root / TURBINE_FILE))
     hm_dir = root / HEATMAP_DIR
-    if not hm_dir.is_dir():
+    hm_kind = _kind(hm_dir)
+    if hm_kind is None:
         raise InputError("required heat-map directory of a flight folder is missing",
                          path=hm_dir)
+    if hm_kind != "dir":
+        raise InputError("not a directory (expected the heat-map folder)", path=hm_dir)
 
     odometry = gt_poses = None
     gt_turbine: TurbineParams | None = None
-    if (root / ODOMETRY_FILE).exists():
+    if _kind(root / ODOMETRY_FILE) is not None:
         odometry = _read_matching_tum(root / ODOMETRY_FILE, keyframes, kf_path)
-    if (root / GT_POSES_FILE).exists():
+    if _kind(root / GT_POSES_FILE) is not None:
         gt_poses = _read_matching_tum(root / GT_POSES_FILE, keyframes, kf_path)
-    if (root / GT_TURBINE_FILE).exists():
+    if _kind(root / GT_TURBINE_FILE) is not None:
         gt_turbine = read_turbine_yaml(root / GT_TURBINE_FILE)
 
     heatmaps = read_heatmaps(hm_dir, keyframes.timestamps, camera.height, camera.width,
@@ -307,7 +338,10 @@ def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
 
 
 def _only_flight_entries(folder: Path) -> str | None:
-    """None if ``folder`` holds only flight-folder entries (safe to replace), else why not."""
+    """None if ``folder`` holds only flight-folder entries (safe to replace), else why not.
+
+    An OSError (e.g. an unreadable ``heatmaps/``) propagates; :func:`check_output_dir`
+    turns it into an InputError."""
     for entry in folder.iterdir():
         if entry.name not in FLIGHT_ENTRIES:
             return f"{entry.name!r} is not part of a flight folder"
@@ -320,8 +354,18 @@ def _only_flight_entries(folder: Path) -> str | None:
     return None
 
 
+def check_flight_destination(folder: StrPath, overwrite: bool = False,
+                             overwrite_hint: str = "pass overwrite=True to replace it") -> None:
+    """Raise the InputError :func:`write_flight` would raise for ``folder`` as destination
+    (a file or symbolic link, a non-empty folder without ``overwrite``, a folder that is not
+    a flight folder), before the flight to write exists. ``overwrite_hint`` ends the
+    message for a non-empty folder."""
+    check_output_dir(folder, overwrite, _only_flight_entries, overwrite_hint)
+
+
 def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
-                 camera_name: str = "turbinefit") -> Path:
+                 camera_name: str = "turbinefit",
+                 extra_texts: Mapping[str, str] | None = None) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
@@ -337,6 +381,10 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             path). Rewriting the folder a flight was memory-mapped from is safe.
         overwrite: replace an existing non-empty flight folder.
         camera_name: ``camera_name`` written to ``camera.yaml``.
+        extra_texts: further text files to write with the rest, ``{name: text}``; each name
+            must be one of :data:`FLIGHT_ENTRIES` that the flight does not provide (i.e.
+            ``simulation.yaml``), so that a folder ``write_flight`` wrote can always be
+            replaced by it.
 
     Returns:
         The folder written.
@@ -368,6 +416,11 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
     if flight.gt_turbine is not None:
         texts[GT_TURBINE_FILE] = format_turbine_yaml(
             flight.gt_turbine, "ground-truth turbine parameters", root / GT_TURBINE_FILE)
+    for name, text in (extra_texts or {}).items():
+        if name not in FLIGHT_ENTRIES - _DATA_ENTRIES:
+            raise ValueError(f"extra_texts: {name!r} is not an extra flight-folder file "
+                             f"(allowed: {', '.join(sorted(FLIGHT_ENTRIES - _DATA_ENTRIES))})")
+        texts[name] = text
 
     with atomic_output_dir(root, overwrite=overwrite, may_replace=_only_flight_entries) as tmp:
         for name, text in texts.items():

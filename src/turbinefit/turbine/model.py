@@ -25,6 +25,7 @@ Heading is defined modulo 2 pi and blade rotation modulo 2 pi / 3 (three identic
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
@@ -145,11 +146,23 @@ class TurbineGeometry:
         blade_cone: blades leaning forward (away from the tower) by this angle [rad]
             (real turbines ~2.5 deg).
         hub_offset: hub axis above the tower top [m].
+
+    Each must be a finite real number (int, float or NumPy scalar, not bool); anything else
+    is a ValueError naming the field. Values are stored as plain floats.
     """
 
     shaft_tilt: float = 0.0
     blade_cone: float = 0.0
     hub_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        # Checked here, where every user of the geometry (fit configs read from YAML,
+        # simulation settings) passes, instead of failing deep in the model's trigonometry.
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise ValueError(f"geometry.{f.name}: must be a finite real number (got {v!r})")
+            object.__setattr__(self, f.name, float(v))  # plain floats: YAML/JSON-safe
 
 
 PAPER_GEOMETRY = TurbineGeometry()
