@@ -9,7 +9,10 @@ overwritten.
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
+import numbers
 import os
 import time
 from collections.abc import Callable
@@ -25,13 +28,21 @@ from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
 from turbinefit.heatmaps import NonFiniteHeatmapError
-from turbinefit.io.atomic import atomic_output_dir
+from turbinefit.io.atomic import atomic_output_dir, check_output_dir, read_text, write_text_atomic
+from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
 from turbinefit.io.flight_folder import read_flight
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
+from turbinefit.turbine.model import TurbineGeometry
+
+#: Everything ``fit`` writes into its output folder: all that ``fit --overwrite`` replaces.
+FIT_ENTRIES = frozenset({"keyframes.txt", "turbine.yaml", "config.yaml", "summary.json",
+                         "scene.png", "reprojections.png", "errors.png", "cost.png"})
+#: How the command line asks for an existing non-empty output folder to be replaced.
+_OVERWRITE_HINT = "use --overwrite"
 
 
 @dataclass
@@ -56,15 +67,20 @@ class FitReport:
 
 
 def load_fit_config(path: str | os.PathLike[str]) -> FitConfig:
-    """Read fit options from a YAML mapping (the ``config.yaml`` that ``fit`` writes)."""
+    """Read fit options from a YAML mapping (the ``config.yaml`` that ``fit`` writes).
+
+    Every problem is an :class:`InputError` naming the file (and line or option): a file that
+    is missing, a directory, unreadable or not UTF-8; malformed YAML or a duplicate key; an
+    unknown option; a value of the wrong type (numbers written like ``1e-5``, which YAML 1.1
+    reads as strings, are accepted) or out of range.
+    """
     p = Path(path)
+    text = read_text(p)
     try:
-        data = yaml.safe_load(p.read_text())
-    except FileNotFoundError:
-        raise InputError("file not found", p) from None
+        data = safe_load_strict(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise InputError(f"malformed YAML: {getattr(exc, 'problem', exc)}", p,
+        raise InputError(f"malformed YAML: {getattr(exc, 'problem', None) or exc}", p,
                          None if mark is None else mark.line + 1) from None
     if data is None:
         data = {}
@@ -72,18 +88,81 @@ def load_fit_config(path: str | os.PathLike[str]) -> FitConfig:
         raise InputError("expected a mapping of fit options", p)
     data.pop("turbinefit_version", None)
     try:
-        return FitConfig.from_dict(data)
+        return FitConfig.from_dict(_typed_options(data, p))
     except (TypeError, ValueError) as exc:
         raise InputError(str(exc), p) from None
 
 
+def _typed_options(data: dict[Any, Any], path: Path) -> dict[str, Any]:
+    """``data`` with the types of the numeric options checked (YAML gives any type; the
+    dataclass checks ranges and choices): whole numbers for ``int`` options, numbers (or
+    numeric text) for ``float`` options, a mapping for ``geometry`` (whose values
+    :class:`TurbineGeometry` checks), a list of finite numbers for ``pair_information``.
+    Raises InputError naming the option."""
+    for key in data:
+        if not isinstance(key, str):
+            raise InputError(f"option name {key!r} is not a string", path)
+    out = dict(data)
+    # annotations are strings (postponed evaluation) or, without that, the types themselves
+    kinds = {f.name: f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
+             for f in dataclasses.fields(FitConfig)}
+
+    def number(name: str, v: Any) -> float:
+        if isinstance(v, str) and FLOAT_TEXT.fullmatch(v.strip()):
+            return float(v)
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise InputError(f"{name}: must be a number (got {v!r})", path)
+        return float(v)
+
+    for name, v in data.items():
+        kind = kinds.get(name)
+        if kind == "int" and (isinstance(v, bool) or not isinstance(v, int)):
+            raise InputError(f"{name}: must be a whole number (got {v!r})", path)
+        if kind == "float":
+            out[name] = number(name, v)
+    if "geometry" in data:
+        geo = data["geometry"]
+        if not isinstance(geo, dict):
+            names = ", ".join(f.name for f in dataclasses.fields(TurbineGeometry))
+            raise InputError(f"geometry: must be a mapping with keys {names} (got {geo!r})",
+                             path)
+        for key in geo:
+            if not isinstance(key, str):
+                raise InputError(f"geometry: option name {key!r} is not a string", path)
+    if "pair_information" in data:
+        info = data["pair_information"]
+        if info is not None:
+            if not isinstance(info, list):
+                raise InputError("pair_information: must be a list of 36 numbers (a 6x6 "
+                                 f"matrix, row-major) or null (got {info!r})", path)
+            out["pair_information"] = [number(f"pair_information[{i}]", x)
+                                       for i, x in enumerate(info)]
+            if not all(math.isfinite(x) for x in out["pair_information"]):
+                raise InputError("pair_information: must be finite", path)
+    return out
+
+
 def _check_out_dir(out_dir: Path, inputs: list[Path]) -> None:
-    out = out_dir.resolve()
+    try:
+        out = out_dir.resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symbolic-link loop
+        raise InputError(f"cannot resolve the output path: {exc}", out_dir) from None
     for src in inputs:
-        s = src.resolve()
+        try:
+            s = src.resolve()
+        except (OSError, RuntimeError) as exc:
+            raise InputError(f"cannot resolve the input path: {exc}", src) from None
         if out == s or s.is_relative_to(out) or out.is_relative_to(s):
             raise InputError(f"output folder would overwrite or nest inside the input {src}",
                              out_dir)
+
+
+def _only_fit_outputs(folder: Path) -> str | None:
+    """None if ``folder`` holds nothing but files ``fit`` writes (safe to replace)."""
+    for entry in folder.iterdir():
+        if entry.name not in FIT_ENTRIES or entry.is_dir():
+            return f"{entry.name!r} is not an output of turbinefit fit"
+    return None
 
 
 def fit_folder(
@@ -94,6 +173,7 @@ def fit_folder(
     plots: bool = True,
     overwrite: bool = False,
     progress: Callable[[IterationRecord], None] | None = None,
+    config_path: str | os.PathLike[str] | None = None,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -101,13 +181,18 @@ def fit_folder(
     theta), ``summary.json``, ``config.yaml`` (the resolved options) and, unless
     ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with ground
     truth) and ``cost.png``.
+
+    ``out_dir`` is checked before anything is read: it must not be, contain or lie inside
+    ``flight_dir`` (or ``config_path``, the file ``config`` was read from, if given); a file
+    or symbolic link there is refused; an existing non-empty folder is refused unless
+    ``overwrite``, and even then unless it holds nothing but the files above (a guard
+    against ``--overwrite`` on a wrong path).
     """
     cfg = config or FitConfig()
     flight_dir = Path(flight_dir)
     out_dir = Path(out_dir)
-    _check_out_dir(out_dir, [flight_dir])
-    if out_dir.exists() and not overwrite and any(out_dir.iterdir()):
-        raise InputError("output folder exists and is not empty (use --overwrite)", out_dir)
+    _check_out_dir(out_dir, [flight_dir] + ([] if config_path is None else [Path(config_path)]))
+    check_output_dir(out_dir, overwrite, _only_fit_outputs, _OVERWRITE_HINT)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     flight = read_flight(flight_dir)
@@ -131,20 +216,26 @@ def fit_folder(
 
     summary = make_summary(flight_dir, flight, result, before, after, timings)
     t2 = time.perf_counter()
-    with atomic_output_dir(out_dir, overwrite=overwrite) as tmp:
+    with atomic_output_dir(out_dir, overwrite=overwrite, may_replace=_only_fit_outputs) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
         write_turbine_yaml(tmp / "turbine.yaml", result.turbine,
                            comment="turbinefit: fitted turbine parameters (metres, radians)")
         cfg_dict = {"turbinefit_version": __version__, **result.config.to_dict()}
-        (tmp / "config.yaml").write_text(yaml.safe_dump(cfg_dict, sort_keys=False))
+        write_text_atomic(tmp / "config.yaml", yaml.safe_dump(cfg_dict, sort_keys=False),
+                          fsync=False)
         if plots:
             t3 = time.perf_counter()
-            write_plots(tmp, flight, result)
+            try:
+                write_plots(tmp, flight, result)
+            except OSError as exc:  # e.g. no space left on the device
+                raise InputError(f"cannot write the plots: {exc.strerror or exc}",
+                                 out_dir) from exc
             timings["plots"] = time.perf_counter() - t3
         timings["write"] = time.perf_counter() - t2 - timings.get("plots", 0.0)
         timings["total"] = time.perf_counter() - t0
         summary["timing_s"] = {k: round(v, 4) for k, v in timings.items()}
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        write_text_atomic(tmp / "summary.json", json.dumps(summary, indent=2) + "\n",
+                          fsync=False)
     return FitReport(result, out_dir, before, after, timings, summary)
 
 
@@ -167,7 +258,7 @@ def make_summary(flight_dir: Path, flight: Flight, result: FitResult, before: Ac
             "termination": result.termination,
             "num_residuals": result.num_residuals,
             "history": [
-                {"round": h.round, "iteration": h.iteration, "cost": h.cost,
+                {"stage": h.stage, "round": h.round, "iteration": h.iteration, "cost": h.cost,
                  "step_norm": h.step_norm, "mu": h.mu, "accepted": h.accepted,
                  "time_s": round(h.time_s, 5)}
                 for h in result.history
@@ -216,22 +307,22 @@ def simulate_folder(
     progress: bool = False,
 ) -> Path:
     """Simulate a flight (:func:`turbinefit.sim.simulate_flight`) and write it as a flight
-    folder with ground truth; the resolved simulation settings go to ``simulation.yaml``."""
-    import dataclasses
+    folder with ground truth; the resolved simulation settings go to ``simulation.yaml``.
 
-    from turbinefit.io.flight_folder import write_flight
+    The whole folder, ``simulation.yaml`` included, is written atomically. ``out_dir`` is
+    checked before simulating: a file or symbolic link is refused, and an existing
+    non-empty folder unless ``overwrite`` and it is a flight folder (e.g. one this wrote).
+    """
+    from turbinefit.io.flight_folder import SIMULATION_FILE, check_flight_destination, write_flight
     from turbinefit.sim.scenario import SimConfig, simulate_flight
 
     cfg = config or SimConfig()
     out = Path(out_dir)
-    if out.exists() and not overwrite and any(out.iterdir()):
-        raise InputError("output folder exists and is not empty (use --overwrite)", out)
+    check_flight_destination(out, overwrite, _OVERWRITE_HINT)
     flight = simulate_flight(cfg, progress=progress)
-    write_flight(flight, out, overwrite=overwrite)
     settings = {"turbinefit_version": __version__, **_plain(dataclasses.asdict(cfg))}
-    from turbinefit.io.atomic import write_text_atomic
-
-    write_text_atomic(out / "simulation.yaml", yaml.safe_dump(settings, sort_keys=False))
+    write_flight(flight, out, overwrite=overwrite,
+                 extra_texts={SIMULATION_FILE: yaml.safe_dump(settings, sort_keys=False)})
     return out
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit import _native
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 
@@ -57,6 +58,10 @@ def project_points(
     ``blend = (Ja, Jb, f)`` gives per-keyframe Jacobians of points on segments,
     ``(1 - f) Ja + f Jb`` with shared Ja, Jb (M, 3, 7) and fractions f (N, M), without
     forming them (``J_theta`` is then ignored): much faster than (N, M, 3, 7) products."""
+    if not with_jacobian and _native.available() and world_T_cam.wxyz_xyz.ndim == 2:
+        uv, front, inside = _native.project(world_T_cam.wxyz_xyz, camera.kernel_params(),
+                                            camera.width, camera.height, world_p)
+        return Projection(uv=uv, front=front, inside=inside, J=None)
     R = world_T_cam.rotation_matrix()  # (N, 3, 3)
     t = world_T_cam.translation  # (N, 3)
     wp = world_p if world_p.ndim == 3 else world_p[None, :, :]

@@ -88,6 +88,12 @@ class PinholeCamera:
     def K(self) -> FloatArray:
         return np.array([[self.fx, self.skew, self.cx], [0.0, self.fy, self.cy], [0, 0, 1.0]])
 
+    def kernel_params(self) -> FloatArray:
+        """(fx, fy, cx, cy, skew, k1, k2, p1, p2, k3, r2_max): the camera as the compiled
+        kernels take it (``r2_max``: the trusted range of the distortion model)."""
+        return np.array([self.fx, self.fy, self.cx, self.cy, self.skew, *self.distortion,
+                         self._r2_max])
+
     @property
     def has_distortion(self) -> bool:
         return any(c != 0.0 for c in self.distortion)

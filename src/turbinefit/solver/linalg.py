@@ -6,19 +6,22 @@ The Hessian approximation of the joint problem is an *arrow* matrix::
     [ C^T  E ]      image terms on the diagonal, pairwise edges (k, k+1) off it)
                  C: (6N x 7) pose-turbine coupling, E: (7 x 7) turbine block
 
-It is solved in O(N) work: A by block cyclic reduction (odd-even elimination, log2(N)
-levels of batched 6x6 solves, all right-hand sides at once), and the 7 turbine unknowns
-by a Schur complement. Written by hand with numpy only: no library in the scientific
-Python stack exploits this shape (scipy.sparse has no sparse Cholesky and its LU is
-several times slower here), LAPACK's banded Cholesky would need scipy.linalg, whose import
-alone (0.3 s) costs more than all the linear solves of a 1000-keyframe fit, and cyclic
-reduction vectorises where a sequential block Thomas sweep would loop in Python.
+It is solved in O(N) work: A by a sequential block Cholesky in the compiled kernels
+(:mod:`turbinefit._native`), or, without them, by block cyclic reduction in numpy
+(odd-even elimination, log2(N) levels of batched 6x6 solves, all right-hand sides at
+once, since a sequential sweep would loop in Python); the 7 turbine unknowns by a Schur
+complement. Written by hand: no library in the scientific Python stack exploits this
+shape (scipy.sparse has no sparse Cholesky and its LU is several times slower here), and
+LAPACK's banded Cholesky would need scipy.linalg, whose import alone (0.3 s) costs more
+than all the linear solves of a 1000-keyframe fit.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+
+from turbinefit import _native
 
 FloatArray = NDArray[np.float64]
 
@@ -35,6 +38,8 @@ def solve_block_tridiagonal(D: FloatArray, B: FloatArray, b: FloatArray) -> Floa
         x: (n, s, m). Raises ``numpy.linalg.LinAlgError`` if a pivot block is singular.
     """
     n, s = D.shape[0], D.shape[1]
+    if s == 6 and _native.available():
+        return _native.block_tridiag_solve(D, B, b)
     if n == 1:
         return np.linalg.solve(D[0], b[0])[None]
     Bp = np.zeros((n, s, s))

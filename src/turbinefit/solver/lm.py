@@ -91,18 +91,17 @@ def levenberg_marquardt(
     nu = 2.0
     optimise_poses = not problem.fixed.all()
     termination = "max_iterations"
-    it = 0
     t0 = time.perf_counter()
     costs = [lin.cost]
     rejections = 0
-    for it in range(1, (max_iterations or cfg.max_iterations) + 1):
+    evaluated = 0  # trial steps evaluated (= records in history)
+    for _ in range(max_iterations or cfg.max_iterations):
         assert lin.D is not None and lin.B is not None and lin.g_p is not None
         g_inf = float(np.max(np.abs(lin.g_p))) if optimise_poses else 0.0
         if lin.g_t is not None:
             g_inf = max(g_inf, float(np.max(np.abs(lin.g_t))))
         if g_inf < cfg.gradient_tolerance:
             termination = "gradient_tolerance"
-            it -= 1
             break
         try:
             if optimise_poses:
@@ -131,6 +130,7 @@ def levenberg_marquardt(
         new_poses = poses.retract(dp) if optimise_poses else poses
         new_theta = theta + dt if dt is not None else theta
         new_lin = problem.linearize(new_poses, new_theta, corr)
+        evaluated += 1
         actual = lin.cost - new_lin.cost
         gain = actual / pred if pred > 0 else -1.0
         accepted = bool(np.isfinite(new_lin.cost) and gain > 1e-3)
@@ -141,7 +141,7 @@ def levenberg_marquardt(
         else:
             mu *= nu
             nu *= 2.0
-        rec = IterationRecord(round_index, it, stage, lin.cost, step_norm, mu, accepted,
+        rec = IterationRecord(round_index, evaluated, stage, lin.cost, step_norm, mu, accepted,
                               time.perf_counter() - t0)
         if history is not None:
             history.append(rec)
@@ -161,4 +161,4 @@ def levenberg_marquardt(
         if mu > 1e16 or rejections >= 8:
             termination = "no_progress"
             break
-    return LMOutcome(poses, theta, mu, lin, it, termination)
+    return LMOutcome(poses, theta, mu, lin, evaluated, termination)

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit import _native
 from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
@@ -41,12 +42,31 @@ from turbinefit.costs.projection import project_points
 from turbinefit.costs.robust import RobustLoss
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.solver.config import FitConfig
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
 FloatArray = NDArray[np.float64]
-#: Jacobian of model samples w.r.t. theta: shared (M, 3, 7), a blend (Ja, Jb, f), or None.
-ThetaJacobian = FloatArray | tuple[FloatArray, FloatArray, FloatArray] | None
+
+
+@dataclass
+class Samples:
+    """World points of an image term: ``(1 - f) A + f B`` with per-keyframe fractions
+    ``f`` (N, M) along segments A -> B (M, 3), or the shared points A if ``f`` is None;
+    ``JA``, ``JB`` (M, 3, 7): the ends' Jacobians w.r.t. theta, or None."""
+
+    A: FloatArray
+    B: FloatArray
+    JA: FloatArray | None
+    JB: FloatArray | None
+    f: FloatArray | None = None
+
+    def points(self) -> FloatArray:
+        """(M, 3) shared, or (N, M, 3) per-keyframe world points."""
+        if self.f is None:
+            return self.A
+        f = self.f[..., None]
+        return self.A[None] * (1.0 - f) + self.B[None] * f
 
 
 @dataclass
@@ -147,27 +167,22 @@ class FitProblem:
 
     # ------------------------------------------------------------------------------
     def model(self, theta: FloatArray, with_jacobian: bool,
-              fractions: FloatArray | None = None,
-              ) -> tuple[FloatArray, FloatArray | None, FloatArray, ThetaJacobian]:
-        """Model points (6, 3) and line samples, with Jacobians w.r.t. theta.
+              fractions: FloatArray | None = None) -> tuple[Samples, Samples]:
+        """The 6 model points and the line samples, with Jacobians w.r.t. theta.
 
-        Line samples are (5n, 3) at uniform fractions (Jacobian (5n, 3, 7)), or (N, 5n, 3) at
-        per-keyframe ``fractions`` (N, 5, n) along each line (Jacobian as a blend
-        ``(Ja, Jb, f)`` of the end points' Jacobians, see ``project_points``)."""
+        Line samples sit at uniform fractions of each line, or at per-keyframe
+        ``fractions`` (N, 5, n) (visible-part sampling)."""
         P, JP = model_points(theta, self.config.geometry, with_jacobian)
+        points = Samples(P, P, JP, JP)
         if fractions is None:
             S, JS, _ = line_samples(P, JP, self.config.samples_per_line)
-            return P, JP, S, JS
+            return points, Samples(S, S, JS, JS)
         ends = np.array([[ln[0], ln[1]] for ln in LINES])
-        N = fractions.shape[0]
-        f = fractions.reshape(N, -1)[..., None]  # (N, 5n, 1)
         a = ends[self._line_index, 0]
         b = ends[self._line_index, 1]
-        S = P[a][None] * (1.0 - f) + P[b][None] * f
-        blend = None
-        if JP is not None:
-            blend = (JP[a], JP[b], f[..., 0])
-        return P, JP, S, blend
+        f = fractions.reshape(fractions.shape[0], -1)
+        return points, Samples(P[a], P[b], None if JP is None else JP[a],
+                               None if JP is None else JP[b], f)
 
     def visible_fractions(self, poses: SE3, theta: FloatArray) -> FloatArray:
         """Per keyframe and line, ``n`` sample fractions spread over the part of the line
@@ -205,7 +220,8 @@ class FitProblem:
         out = Correspondences()
         if cfg.line_sampling == "visible" and cfg.lines != "none":
             out.line_fractions = self.visible_fractions(poses, theta)
-        P, _, S, _ = self.model(theta, False, out.line_fractions)
+        pts, lns = self.model(theta, False, out.line_fractions)
+        P, S = pts.A, lns.points()
         if cfg.points == "corr":
             pr = project_points(cam, poses, P, None, with_jacobian=False)
             out.point_target, out.point_found = find_point_correspondences(
@@ -226,7 +242,7 @@ class FitProblem:
         return out
 
     # ------------------------------------------------------------------------------
-    def _image_block(self, kind: str, pts: FloatArray, Jpts: ThetaJacobian,
+    def _image_block(self, kind: str, smp: Samples,
                      channels: NDArray[np.int_], lam: float, poses: SE3,
                      target: FloatArray | None, found: NDArray[np.bool_] | None,
                      normal: FloatArray | None,
@@ -236,10 +252,11 @@ class FitProblem:
         ``(g, H, J)``: gradient (N, M, 2) and PSD Hessian model (N, M, 2, 2) of the cost
         w.r.t. each point's pixel, and d uv / d x (N, M, 2, 13). Robustified."""
         cfg = self.config
-        blend = Jpts if isinstance(Jpts, tuple) else None
-        pr = project_points(self.flight.camera, poses, pts,
-                            None if isinstance(Jpts, tuple) else Jpts, with_jacobian,
-                            blend=blend)
+        blend = None
+        if smp.f is not None and smp.JA is not None and smp.JB is not None:
+            blend = (smp.JA, smp.JB, smp.f)
+        pr = project_points(self.flight.camera, poses, smp.points(),
+                            smp.JA if smp.f is None else None, with_jacobian, blend=blend)
         g: FloatArray | None = None
         H: FloatArray | None = None
         if kind == "interp":
@@ -278,17 +295,38 @@ class FitProblem:
             H = H * drho[..., None, None]
         return cost, n_res, n_in, (g, H, pr.J)
 
+    def _image_block_native(self, maps: NDArray[np.uint64], kind: str, smp: Samples,
+                            channels: NDArray[np.int_], lam: float, poses: SE3,
+                            target: FloatArray | None, found: NDArray[np.bool_] | None,
+                            normal: FloatArray | None, JtHJ: FloatArray | None,
+                            g: FloatArray | None) -> tuple[float, int, int]:
+        """:meth:`_image_block` by the compiled kernel, adding into ``JtHJ`` and ``g``
+        (when given); returns cost, points in view and residual count."""
+        cfg = self.config
+        cam = self.flight.camera
+        cost, count, bad = _native.image_terms(
+            poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
+            smp.JA if JtHJ is not None else None, smp.JB if JtHJ is not None else None,
+            smp.f, channels, maps, self.keyframes, kind, target, found, normal, lam,
+            cfg.pixel_sigma, cfg.border_margin, cfg.heatmap_floor, cfg.robust,
+            cfg.robust_scale, JtHJ is not None, JtHJ, g)
+        if bad >= 0:
+            raise NonFiniteHeatmapError(int(self.keyframes[bad]))
+        N, M = poses.batch_shape[0], smp.A.shape[0]
+        n_res = N * M * (2 if kind == "corr" and normal is None else 1)
+        return float(cost.sum()), int(count.sum()), n_res
+
     def linearize(self, poses: SE3, theta: FloatArray, corr: Correspondences,
                   with_jacobian: bool = True) -> Linearization:
         """Cost, and normal equations if ``with_jacobian``, at ``(poses, theta)``."""
         cfg = self.config
-        P, JP, S, JS = self.model(theta, with_jacobian, corr.line_fractions)
+        pts, lns = self.model(theta, with_jacobian, corr.line_fractions)
         terms: dict[str, float] = {}
         in_view: dict[str, int] = {}
         blocks = (
-            ("points", cfg.points, P, JP, POINT_CHANNELS, cfg.lambda_points,
+            ("points", cfg.points, pts, POINT_CHANNELS, cfg.lambda_points,
              corr.point_target, corr.point_found, None),
-            ("lines", cfg.lines, S, JS, self._line_channels, cfg.lambda_lines,
+            ("lines", cfg.lines, lns, self._line_channels, cfg.lambda_lines,
              corr.line_target, corr.line_found,
              corr.line_normal if cfg.line_residual == "normal" else None),
         )
@@ -296,10 +334,17 @@ class FitProblem:
         JtHJ = np.zeros((N, 13, 13)) if with_jacobian else None
         g_u = np.zeros((N, 13)) if with_jacobian else None
         n_res = 0
-        for name, kind, pts, Jpts, ch, lam, tgt, fnd, nrm in blocks:
+        maps = self.flight.heatmaps.pointers() if _native.available() else None
+        for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
-            c, nr, n_in, der = self._image_block(kind, pts, Jpts, ch, lam, poses, tgt, fnd, nrm,
+            if maps is not None:
+                terms[name], n_in, nr = self._image_block_native(
+                    maps, kind, smp, ch, lam, poses, tgt, fnd, nrm, JtHJ, g_u)
+                in_view[name] = n_in
+                n_res += nr
+                continue
+            c, nr, n_in, der = self._image_block(kind, smp, ch, lam, poses, tgt, fnd, nrm,
                                                  with_jacobian)
             terms[name] = c
             in_view[name] = n_in

@@ -1,0 +1,657 @@
+/*
+ * turbinefit's compiled kernels: the image terms of the joint least-squares problem
+ * (projection, bicubic heat-map cost or 2-D correspondence, their Newton model, and the
+ * per-keyframe normal-equation blocks), the correspondence searches, and the
+ * block-tridiagonal solve of the pose chain.
+ *
+ * Each function mirrors a numpy reference in the package exactly (same formulas, same
+ * clamping, same order of decisions); tests compare the two. They are written in C
+ * because the numpy versions spend their time on temporaries of shape (N, M, 2, 13) and
+ * on per-keyframe gathers from separate memory maps, while here each sample is projected,
+ * interpolated and folded into its keyframe's 13 x 13 block in registers. Keyframes are
+ * independent, so the loops over them run in parallel with OpenMP where available.
+ *
+ * Conventions (see the Python modules): poses are world_T_cam as wxyz + xyz; a camera
+ * point is R^T (p - t); the local pose update is t + dt, R Exp(dphi); Jacobian columns are
+ * (dt[3], dphi[3], theta[7]). Heat-maps are float32 (7, H, W), element [c, i, j] at
+ * u = j, v = i. Loaded with ctypes (no Python C API).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#ifdef _WIN32
+#define TF_EXPORT __declspec(dllexport)
+#else
+#define TF_EXPORT __attribute__((visibility("default")))
+#endif
+
+#define MIN_DEPTH 0.1
+#define G_MIN 1e-4
+#define NCOL 13
+
+/* ---- camera ------------------------------------------------------------------- */
+
+typedef struct {
+    double fx, fy, cx, cy, skew, k1, k2, p1, p2, k3, r2max;
+    int width, height, has_dist;
+} Camera;
+
+static Camera camera_from(const double *c, int width, int height) {
+    Camera cam;
+    cam.fx = c[0]; cam.fy = c[1]; cam.cx = c[2]; cam.cy = c[3]; cam.skew = c[4];
+    cam.k1 = c[5]; cam.k2 = c[6]; cam.p1 = c[7]; cam.p2 = c[8]; cam.k3 = c[9];
+    cam.r2max = c[10];
+    cam.width = width; cam.height = height;
+    cam.has_dist = (cam.k1 != 0.0 || cam.k2 != 0.0 || cam.p1 != 0.0 || cam.p2 != 0.0
+                    || cam.k3 != 0.0);
+    return cam;
+}
+
+/* Project camera point P; uv and (if Juv) d uv / d P (2x3, row-major). Returns front. */
+static int project(const Camera *cam, const double P[3], double uv[2], double *Juv) {
+    double X = P[0], Y = P[1], Z = P[2];
+    int front = Z > MIN_DEPTH;
+    double inv_z = 1.0 / (front ? Z : 1.0);
+    double x = X * inv_z, y = Y * inv_z;
+    double r2 = x * x + y * y;
+    int in_range = r2 < cam->r2max;
+    double xd = x, yd = y, radial = 1.0;
+    if (cam->has_dist) {
+        radial = 1.0 + r2 * (cam->k1 + r2 * (cam->k2 + r2 * cam->k3));
+        xd = x * radial + 2 * cam->p1 * x * y + cam->p2 * (r2 + 2 * x * x);
+        yd = y * radial + cam->p1 * (r2 + 2 * y * y) + 2 * cam->p2 * x * y;
+    }
+    uv[0] = cam->fx * xd + cam->skew * yd + cam->cx;
+    uv[1] = cam->fy * yd + cam->cy;
+    front = front && in_range;
+    if (Juv) {
+        double dxd_dx = 1.0, dxd_dy = 0.0, dyd_dx = 0.0, dyd_dy = 1.0;
+        if (cam->has_dist) {
+            double dr = cam->k1 + r2 * (2 * cam->k2 + 3 * cam->k3 * r2);
+            dxd_dx = radial + 2 * x * x * dr + 2 * cam->p1 * y + 6 * cam->p2 * x;
+            dxd_dy = 2 * x * y * dr + 2 * cam->p1 * x + 2 * cam->p2 * y;
+            dyd_dx = dxd_dy;
+            dyd_dy = radial + 2 * y * y * dr + 6 * cam->p1 * y + 2 * cam->p2 * x;
+        }
+        double du_dx = cam->fx * dxd_dx + cam->skew * dyd_dx;
+        double du_dy = cam->fx * dxd_dy + cam->skew * dyd_dy;
+        double dv_dx = cam->fy * dyd_dx;
+        double dv_dy = cam->fy * dyd_dy;
+        if (front) {
+            Juv[0] = du_dx * inv_z;
+            Juv[1] = du_dy * inv_z;
+            Juv[2] = -(du_dx * x + du_dy * y) * inv_z;
+            Juv[3] = dv_dx * inv_z;
+            Juv[4] = dv_dy * inv_z;
+            Juv[5] = -(dv_dx * x + dv_dy * y) * inv_z;
+        } else {
+            for (int i = 0; i < 6; i++) Juv[i] = 0.0;
+        }
+    }
+    return front;
+}
+
+static int in_image(const Camera *cam, const double uv[2]) {
+    return uv[0] >= 0.0 && uv[0] <= cam->width - 1 && uv[1] >= 0.0 && uv[1] <= cam->height - 1;
+}
+
+static void quat_to_R(const double *q, double R[9]) {
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    R[0] = 1 - 2 * (y * y + z * z); R[1] = 2 * (x * y - w * z); R[2] = 2 * (x * z + w * y);
+    R[3] = 2 * (x * y + w * z); R[4] = 1 - 2 * (x * x + z * z); R[5] = 2 * (y * z - w * x);
+    R[6] = 2 * (x * z - w * y); R[7] = 2 * (y * z + w * x); R[8] = 1 - 2 * (x * x + y * y);
+}
+
+/* ---- bicubic (Catmull-Rom) ------------------------------------------------------- */
+
+static void cr_weights(double t, double w[4], double dw[4], double d2w[4]) {
+    double t2 = t * t, t3 = t2 * t;
+    w[0] = 0.5 * (-t3 + 2 * t2 - t); w[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+    w[2] = 0.5 * (-3 * t3 + 4 * t2 + t); w[3] = 0.5 * (t3 - t2);
+    dw[0] = 0.5 * (-3 * t2 + 4 * t - 1); dw[1] = 0.5 * (9 * t2 - 10 * t);
+    dw[2] = 0.5 * (-9 * t2 + 8 * t + 1); dw[3] = 0.5 * (3 * t2 - 2 * t);
+    d2w[0] = -3 * t + 2; d2w[1] = 9 * t - 5; d2w[2] = -9 * t + 4; d2w[3] = 3 * t - 1;
+}
+
+static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/* Value, gradient (du, dv) and Hessian (uu, uv, vv) of one channel plane at (u, v).
+ * Returns 0, or 1 if a tap is not finite. */
+static int bicubic(const float *plane, int W, int H, double u, double v, double *G,
+                   double dG[2], double hG[3]) {
+    u = fmin(fmax(u, -1.0), (double)W);
+    v = fmin(fmax(v, -1.0), (double)H);
+    double u0 = floor(u), v0 = floor(v);
+    double wu[4], dwu[4], d2wu[4], wv[4], dwv[4], d2wv[4];
+    cr_weights(u - u0, wu, dwu, d2wu);
+    cr_weights(v - v0, wv, dwv, d2wv);
+    int iu = (int)u0, iv = (int)v0;
+    int cols[4];
+    for (int j = 0; j < 4; j++) cols[j] = clampi(iu - 1 + j, 0, W - 1);
+    double val = 0, gu = 0, gv = 0, huu = 0, huv = 0, hvv = 0;
+    int bad = 0;
+    for (int i = 0; i < 4; i++) {
+        const float *row = plane + (size_t)clampi(iv - 1 + i, 0, H - 1) * W;
+        double pu = 0, pdu = 0, pd2u = 0;
+        for (int j = 0; j < 4; j++) {
+            double p = row[cols[j]];
+            if (!isfinite(p)) bad = 1;
+            pu += p * wu[j];
+            pdu += p * dwu[j];
+            pd2u += p * d2wu[j];
+        }
+        val += pu * wv[i];
+        gu += pdu * wv[i];
+        gv += pu * dwv[i];
+        huu += pd2u * wv[i];
+        huv += pdu * dwv[i];
+        hvv += pu * d2wv[i];
+    }
+    *G = val;
+    if (dG) { dG[0] = gu; dG[1] = gv; }
+    if (hG) { hG[0] = huu; hG[1] = huv; hG[2] = hvv; }
+    return bad;
+}
+
+/* Smooth in-image weight and its gradient (same as heatmap_cost.border_weight). */
+static double border_weight(double u, double v, int W, int H, double margin, double grad[2]) {
+    double d[4] = {u, W - 1 - u, v, H - 1 - v};
+    int which = 0;
+    for (int k = 1; k < 4; k++)
+        if (d[k] < d[which]) which = k;
+    double dmin = d[which];
+    grad[0] = grad[1] = 0.0;
+    if (margin <= 0) return dmin >= 0 ? 1.0 : 0.0;
+    double x = fmin(fmax(dmin / margin, 0.0), 1.0);
+    double w = x * x * (3.0 - 2.0 * x);
+    double dw = (x > 0 && x < 1) ? 6.0 * x * (1.0 - x) / margin : 0.0;
+    double sign = (which % 2 == 0) ? 1.0 : -1.0;
+    grad[which / 2] = sign * dw;
+    return w;
+}
+
+/* Nearest PSD matrix of [[a, b], [b, c]] into H (row-major 2x2). */
+static void psd2(double a, double b, double c, double H[4]) {
+    double m = 0.5 * (a + c);
+    double d = sqrt(0.25 * (a - c) * (a - c) + b * b);
+    double l1 = m + d, l2 = m - d;
+    H[0] = a; H[1] = b; H[2] = b; H[3] = c;
+    if (l1 <= 0.0) {
+        H[0] = H[1] = H[2] = H[3] = 0.0;
+    } else if (l2 < 0.0) {
+        double f = l1 / (l1 - l2);
+        H[0] = f * (a - l2); H[1] = f * b; H[2] = f * b; H[3] = f * (c - l2);
+    }
+}
+
+/* Robust loss (robust.py): rho(s) and rho'(s). kind 0 none, 1 huber, 2 cauchy. */
+static void robust(int kind, double scale, double s, double *rho, double *drho) {
+    double c2 = scale * scale;
+    if (kind == 1) {
+        if (s <= c2) { *rho = s; *drho = 1.0; }
+        else {
+            double root = sqrt(fmax(s, 1e-300));
+            *rho = 2.0 * scale * root - c2;
+            *drho = scale / root;
+        }
+    } else if (kind == 2) {
+        *rho = c2 * log1p(s / c2);
+        *drho = 1.0 / (1.0 + s / c2);
+    } else {
+        *rho = s; *drho = 1.0;
+    }
+}
+
+/* ---- image terms ------------------------------------------------------------------ */
+
+/*
+ * kind 0: interp (heat-map cost, exact PSD Hessian); kind 1: corr, to target (N, M, 2)
+ * where found (N, M), 2-D distance, or along normal (N, M, 2) if given.
+ * par: lambda, pixel_sigma, margin, floor, robust_kind, robust_scale.
+ * Points: p = (1 - f) A + f B, dp/dtheta = (1 - f) JA + f JB, f = frac[n * frac_stride + m]
+ * (frac NULL: f = 0). JA/JB NULL: no theta columns (zero).
+ * Accumulates into JtHJ (N, 13, 13), g (N, 13), cost (N,), count (N,).
+ * Returns -1, or the smallest keyframe row n whose heat-map had a non-finite tap.
+ */
+TF_EXPORT int64_t tf_image_terms(
+    int64_t N, int64_t M, const double *poses, const double *cam_par, int64_t width,
+    int64_t height, const double *A, const double *B, const double *JA, const double *JB,
+    const double *frac, int64_t frac_stride, const int64_t *channels,
+    const uint64_t *maps, const int64_t *keyframes, int64_t kind, const double *target,
+    const uint8_t *found, const double *normal, const double *par, int64_t with_jacobian, double *JtHJ, double *g,
+    double *cost, int64_t *count) {
+    Camera cam = camera_from(cam_par, (int)width, (int)height);
+    const double lam = par[0], sigma = par[1], margin = par[2], floor_ = par[3];
+    const int rkind = (int)par[4];
+    const double rscale = par[5];
+    const double eps = floor_ > G_MIN ? floor_ : G_MIN;
+    const double log1p_eps = log1p(eps);
+    const int W = (int)width, H = (int)height;
+    const size_t plane = (size_t)W * H;
+    int64_t first_bad = INT64_MAX;
+
+#pragma omp parallel for schedule(static) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        double R[9];
+        quat_to_R(poses + 7 * n, R);
+        const double *t = poses + 7 * n + 4;
+        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        double acc[NCOL * NCOL];
+        double gacc[NCOL];
+        memset(acc, 0, sizeof acc);
+        memset(gacc, 0, sizeof gacc);
+        double c_n = 0.0;
+        int64_t cnt = 0;
+        int bad = 0;
+        for (int64_t m = 0; m < M; m++) {
+            double f = frac ? frac[n * frac_stride + m] : 0.0;
+            double p[3], d[3], P[3];
+            for (int k = 0; k < 3; k++) {
+                p[k] = (1.0 - f) * A[3 * m + k] + f * B[3 * m + k];
+                d[k] = p[k] - t[k];
+            }
+            /* P = R^T d */
+            for (int k = 0; k < 3; k++) P[k] = R[k] * d[0] + R[3 + k] * d[1] + R[6 + k] * d[2];
+            double uv[2], Juv[6];
+            int front = project(&cam, P, uv, with_jacobian ? Juv : NULL);
+            double s, gu[2] = {0, 0}, Hm[4] = {0, 0, 0, 0};
+            if (kind == 0) {
+                double dwb[2];
+                double w = front ? border_weight(uv[0], uv[1], W, H, margin, dwb) : 0.0;
+                if (!front) dwb[0] = dwb[1] = 0.0;
+                if (front && in_image(&cam, uv)) cnt++;
+                double G, dG[2], hG[3];
+                const float *pl = hm + (size_t)channels[m] * plane;
+                bad |= bicubic(pl, W, H, uv[0], uv[1], &G, dG, hG);
+                double Gc = fmin(fmax(G, 0.0), 1.0);
+                double rho = log1p_eps - log(Gc + eps);
+                double w2 = w * w;
+                s = lam * w2 * rho;
+                if (with_jacobian) {
+                    int live = G > 0.0 && G < 1.0;
+                    double inv = live ? 1.0 / (Gc + eps) : 0.0;
+                    double kk = 0.5 * lam * w2;
+                    gu[0] = lam * w * rho * dwb[0] - kk * inv * dG[0];
+                    gu[1] = lam * w * rho * dwb[1] - kk * inv * dG[1];
+                    double a = kk * (inv * inv * dG[0] * dG[0] - inv * hG[0]);
+                    double b = kk * (inv * inv * dG[0] * dG[1] - inv * hG[1]);
+                    double c = kk * (inv * inv * dG[1] * dG[1] - inv * hG[2]);
+                    psd2(a, b, c, Hm);
+                    /* border fade, Gauss-Newton */
+                    double br = lam * rho;
+                    Hm[0] += br * dwb[0] * dwb[0];
+                    Hm[1] += br * dwb[0] * dwb[1];
+                    Hm[2] += br * dwb[1] * dwb[0];
+                    Hm[3] += br * dwb[1] * dwb[1];
+                }
+            } else {
+                int use = found[n * M + m] && front;
+                double info = lam / (sigma * sigma);
+                double e0 = use ? uv[0] - target[2 * (n * M + m)] : 0.0;
+                double e1 = use ? uv[1] - target[2 * (n * M + m) + 1] : 0.0;
+                if (use) cnt++;
+                if (normal) {  /* distance along the search normal only */
+                    double n0 = normal[2 * (n * M + m)], n1 = normal[2 * (n * M + m) + 1];
+                    double dn = e0 * n0 + e1 * n1;
+                    s = info * dn * dn;
+                    gu[0] = info * dn * n0;
+                    gu[1] = info * dn * n1;
+                    double iu = use ? info : 0.0;
+                    Hm[0] = iu * n0 * n0; Hm[1] = Hm[2] = iu * n0 * n1; Hm[3] = iu * n1 * n1;
+                } else {
+                    s = info * (e0 * e0 + e1 * e1);
+                    gu[0] = info * e0;
+                    gu[1] = info * e1;
+                    Hm[0] = Hm[3] = use ? info : 0.0;
+                }
+            }
+            double rho_s, drho;
+            robust(rkind, rscale, s, &rho_s, &drho);
+            c_n += 0.5 * rho_s;
+            if (!with_jacobian) continue;
+            if (rkind != 0) {
+                gu[0] *= drho; gu[1] *= drho;
+                for (int k = 0; k < 4; k++) Hm[k] *= drho;
+            }
+            if (gu[0] == 0.0 && gu[1] == 0.0 && Hm[0] == 0.0 && Hm[1] == 0.0 && Hm[3] == 0.0)
+                continue;
+            /* J (2 x 13) = Juv [ -R^T | [P]x | R^T Jp ] */
+            double J[2][NCOL];
+            for (int r = 0; r < 2; r++) {
+                const double *a = Juv + 3 * r;
+                /* a R^T: (a R^T)_k = sum_i a_i R[k][i] */
+                double aRt[3];
+                for (int k = 0; k < 3; k++)
+                    aRt[k] = a[0] * R[3 * k] + a[1] * R[3 * k + 1] + a[2] * R[3 * k + 2];
+                J[r][0] = -aRt[0]; J[r][1] = -aRt[1]; J[r][2] = -aRt[2];
+                /* a [P]x = a x P (row vector times cross matrix) */
+                J[r][3] = a[1] * P[2] - a[2] * P[1];
+                J[r][4] = a[2] * P[0] - a[0] * P[2];
+                J[r][5] = a[0] * P[1] - a[1] * P[0];
+                for (int c = 0; c < 7; c++) {
+                    double v = 0.0;
+                    if (JA) {
+                        for (int k = 0; k < 3; k++) {
+                            double jp = (1.0 - f) * JA[(3 * m + k) * 7 + c]
+                                        + f * JB[(3 * m + k) * 7 + c];
+                            v += aRt[k] * jp;
+                        }
+                    }
+                    J[r][6 + c] = v;
+                }
+            }
+            double HJ[2][NCOL];
+            for (int c = 0; c < NCOL; c++) {
+                HJ[0][c] = Hm[0] * J[0][c] + Hm[1] * J[1][c];
+                HJ[1][c] = Hm[2] * J[0][c] + Hm[3] * J[1][c];
+                gacc[c] += J[0][c] * gu[0] + J[1][c] * gu[1];
+            }
+            for (int i = 0; i < NCOL; i++) {
+                double j0 = J[0][i], j1 = J[1][i];
+                double *row = acc + i * NCOL;
+                for (int c = i; c < NCOL; c++) row[c] += j0 * HJ[0][c] + j1 * HJ[1][c];
+            }
+        }
+        double *out = JtHJ ? JtHJ + n * NCOL * NCOL : NULL;
+        if (with_jacobian && out) {
+            for (int i = 0; i < NCOL; i++)
+                for (int c = i; c < NCOL; c++) {
+                    out[i * NCOL + c] += acc[i * NCOL + c];
+                    if (c != i) out[c * NCOL + i] += acc[i * NCOL + c];
+                }
+            for (int c = 0; c < NCOL; c++) g[n * NCOL + c] += gacc[c];
+        }
+        cost[n] += c_n;
+        count[n] += cnt;
+        if (bad && n < first_bad) first_bad = n;
+    }
+    return first_bad == INT64_MAX ? -1 : first_bad;
+}
+
+/* ---- correspondence searches (costs/correspondence.py) ---------------------------- */
+
+#define LOG_FLOOR 1e-6
+
+/* Vertex of the parabola through the logs of three samples (correspondence._peak_offset). */
+static double peak_offset(double vm, double v0, double vp) {
+    double lm = log(fmax(vm, LOG_FLOOR)), l0 = log(fmax(v0, LOG_FLOOR));
+    double lp = log(fmax(vp, LOG_FLOOR));
+    double den = lm - 2.0 * l0 + lp;
+    double off = den < -1e-12 ? 0.5 * (lm - lp) / den : 0.0;
+    return fmin(fmax(off, -0.5), 0.5);
+}
+
+/* Max over centre + offsets (du, dv pairs) inside the image and within radius R of the
+ * window centre (cu0, cv0); -1 if none. Returns the (clamped) coordinates of the first max. */
+static double window_max(const float *pl, int W, int H, int bu, int bv, const int64_t *off,
+                         int64_t K, int cu0, int cv0, int64_t R, int *ou, int *ov, int *bad) {
+    double best = -INFINITY;
+    int best_u = 0, best_v = 0;
+    for (int64_t k = 0; k < K; k++) {
+        int cu = bu + (int)off[2 * k], cv = bv + (int)off[2 * k + 1];
+        int du = cu - cu0, dv = cv - cv0;
+        int ok = cu >= 0 && cu < W && cv >= 0 && cv < H && (int64_t)du * du + (int64_t)dv * dv <= R * R;
+        int u = clampi(cu, 0, W - 1), v = clampi(cv, 0, H - 1);
+        double val = pl[(size_t)v * W + u];
+        if (!isfinite(val)) *bad = 1;
+        if (!ok) val = -1.0;
+        if (val > best) { best = val; best_u = u; best_v = v; }
+    }
+    *ou = best_u; *ov = best_v;
+    return best;
+}
+
+/* Point correspondences: coarse offsets (K1, 2), fine offsets (K2, 2). uv (N, M, 2),
+ * usable (N, M). Writes target (N, M, 2), found (N, M). Returns -1 or the first bad row. */
+TF_EXPORT int64_t tf_point_search(
+    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
+    const int64_t *keyframes, const int64_t *channels, const double *uv, const uint8_t *usable,
+    int64_t R, const int64_t *coarse, int64_t K1, const int64_t *fine, int64_t K2,
+    double threshold, double *target, uint8_t *found) {
+    const int W = (int)width, H = (int)height;
+    const size_t plane = (size_t)W * H;
+    int64_t first_bad = INT64_MAX;
+#pragma omp parallel for schedule(static) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        int bad = 0;
+        for (int64_t m = 0; m < M; m++) {
+            size_t i = (size_t)(n * M + m);
+            const float *pl = hm + (size_t)channels[m] * plane;
+            int use = usable[i];
+            int cu0 = (int)nearbyint(uv[2 * i]), cv0 = (int)nearbyint(uv[2 * i + 1]);
+            int bu, bv, fu, fv;
+            double peak;
+            if (use) {
+                window_max(pl, W, H, cu0, cv0, coarse, K1, cu0, cv0, R, &bu, &bv, &bad);
+                peak = window_max(pl, W, H, bu, bv, fine, K2, cu0, cv0, R, &fu, &fv, &bad);
+            } else {
+                peak = -1.0;
+                fu = clampi(cu0 + (int)coarse[0], 0, W - 1);
+                fv = clampi(cv0 + (int)coarse[1], 0, H - 1);
+            }
+            int inner = fu > 0 && fu < W - 1 && fv > 0 && fv < H - 1;
+            found[i] = use && peak >= threshold && inner;
+            double n0 = pl[(size_t)fv * W + (fu > 0 ? fu - 1 : 0)];
+            double n1 = pl[(size_t)fv * W + (fu < W - 1 ? fu + 1 : W - 1)];
+            double n2 = pl[(size_t)(fv > 0 ? fv - 1 : 0) * W + fu];
+            double n3 = pl[(size_t)(fv < H - 1 ? fv + 1 : H - 1) * W + fu];
+            if (!(isfinite(n0) && isfinite(n1) && isfinite(n2) && isfinite(n3))) bad = 1;
+            target[2 * i] = fu + peak_offset(n0, peak, n1);
+            target[2 * i + 1] = fv + peak_offset(n2, peak, n3);
+        }
+        if (bad && n < first_bad) first_bad = n;
+    }
+    return first_bad == INT64_MAX ? -1 : first_bad;
+}
+
+/* Bilinear value at (pu, pv) of a plane; -1 outside the image or if !use. */
+static double bilinear(const float *pl, int W, int H, double pu, double pv, int use, int *bad) {
+    int ok = use && pu >= 0.0 && pu <= W - 1 && pv >= 0.0 && pv <= H - 1;
+    int iu = clampi((int)floor(pu), 0, W - 2), iv = clampi((int)floor(pv), 0, H - 2);
+    double fu = fmin(fmax(pu - iu, 0.0), 1.0), fv = fmin(fmax(pv - iv, 0.0), 1.0);
+    const float *r0 = pl + (size_t)iv * W + iu;
+    double t00 = r0[0], t01 = r0[1], t10 = r0[W], t11 = r0[W + 1];
+    if (!(isfinite(t00) && isfinite(t01) && isfinite(t10) && isfinite(t11))) *bad = 1;
+    if (!ok) return -1.0;
+    return (1 - fv) * ((1 - fu) * t00 + fu * t01) + fv * ((1 - fu) * t10 + fu * t11);
+}
+
+/* Line correspondences (correspondence.find_line_correspondences): coarse every 2 px over
+ * s = -L..L, then 1 px either side of the best. Returns -1 or the first bad row. */
+TF_EXPORT int64_t tf_line_search(
+    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
+    const int64_t *keyframes, const int64_t *channels, const double *uv, const double *normal,
+    const uint8_t *usable, int64_t L, double threshold, double *target, uint8_t *found) {
+    const int W = (int)width, H = (int)height;
+    const size_t plane = (size_t)W * H;
+    const int64_t K = L + 1; /* coarse samples at -L, -L + 2, ..., L */
+    int64_t first_bad = INT64_MAX;
+#pragma omp parallel for schedule(static) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        int bad = 0;
+        for (int64_t m = 0; m < M; m++) {
+            size_t i = (size_t)(n * M + m);
+            const float *pl = hm + (size_t)channels[m] * plane;
+            int use = usable[i];
+            double u0 = uv[2 * i], v0 = uv[2 * i + 1];
+            double nu = normal[2 * i], nv = normal[2 * i + 1];
+            double best = -INFINITY, v_cm = -1.0, v_cp = -1.0, prev = -1.0;
+            int64_t kc = 0;
+            int after = 0;
+            for (int64_t k = 0; k < K; k++) {
+                double st = (double)(2 * k - L);
+                double val = bilinear(pl, W, H, u0 + st * nu, v0 + st * nv, use, &bad);
+                if (after) { v_cp = val; after = 0; }
+                if (val > best) { best = val; kc = k; v_cm = prev; after = 1; v_cp = -1.0; }
+                prev = val;
+            }
+            double sc = (double)(2 * kc - L);
+            double fm = bilinear(pl, W, H, u0 + (sc - 1) * nu, v0 + (sc - 1) * nv, use, &bad);
+            double fp = bilinear(pl, W, H, u0 + (sc + 1) * nu, v0 + (sc + 1) * nv, use, &bad);
+            /* candidates at sc - 1, sc, sc + 1; first maximum */
+            double peak = fm, vm = v_cm, vp = best, bs = sc - 1;
+            if (best > peak) { peak = best; vm = fm; vp = fp; bs = sc; }
+            if (fp > peak) { peak = fp; vm = best; vp = v_cp; bs = sc + 1; }
+            int bracketed = bs > -L && bs < L && vm >= 0.0 && vp >= 0.0;
+            found[i] = use && peak >= threshold && bracketed;
+            double s = bs + peak_offset(vm, peak, vp);
+            target[2 * i] = u0 + s * nu;
+            target[2 * i + 1] = v0 + s * nv;
+        }
+        if (bad && n < first_bad) first_bad = n;
+    }
+    return first_bad == INT64_MAX ? -1 : first_bad;
+}
+
+/* ---- projection without derivatives (costs/projection.py) ------------------------ */
+
+/* World points (M, 3), shared (stride 0) or per keyframe (stride M * 3), into N keyframes:
+ * uv (N, M, 2), front (N, M), inside (N, M). */
+TF_EXPORT void tf_project(int64_t N, int64_t M, const double *poses, const double *cam_par,
+                          int64_t width, int64_t height, const double *pts, int64_t stride,
+                          double *uv, uint8_t *front, uint8_t *inside) {
+    Camera cam = camera_from(cam_par, (int)width, (int)height);
+#pragma omp parallel for schedule(static)
+    for (int64_t n = 0; n < N; n++) {
+        double R[9];
+        quat_to_R(poses + 7 * n, R);
+        const double *t = poses + 7 * n + 4;
+        const double *pn = pts + n * stride;
+        for (int64_t m = 0; m < M; m++) {
+            double d[3], P[3];
+            for (int k = 0; k < 3; k++) d[k] = pn[3 * m + k] - t[k];
+            for (int k = 0; k < 3; k++) P[k] = R[k] * d[0] + R[3 + k] * d[1] + R[6 + k] * d[2];
+            size_t i = (size_t)(n * M + m);
+            int f = project(&cam, P, uv + 2 * i, NULL);
+            front[i] = (uint8_t)f;
+            inside[i] = (uint8_t)(f && in_image(&cam, uv + 2 * i));
+        }
+    }
+}
+
+/* ---- block-tridiagonal solve (solver/linalg.py) ----------------------------------- */
+
+/* In-place Cholesky of a 6x6 SPD matrix (lower factor). Returns 0 or 1 if not PD. */
+static int chol6(double *a) {
+    for (int j = 0; j < 6; j++) {
+        double d = a[j * 6 + j];
+        for (int k = 0; k < j; k++) d -= a[j * 6 + k] * a[j * 6 + k];
+        if (!(d > 0.0) || !isfinite(d)) return 1;
+        d = sqrt(d);
+        a[j * 6 + j] = d;
+        for (int i = j + 1; i < 6; i++) {
+            double v = a[i * 6 + j];
+            for (int k = 0; k < j; k++) v -= a[i * 6 + k] * a[j * 6 + k];
+            a[i * 6 + j] = v / d;
+        }
+        for (int i = 0; i < j; i++) a[i * 6 + j] = 0.0;
+    }
+    return 0;
+}
+
+/* Solve L y = b (lower, 6x6) for m columns of b (6, m), in place. */
+static void lsolve6(const double *L, double *b, int64_t m) {
+    for (int i = 0; i < 6; i++)
+        for (int64_t c = 0; c < m; c++) {
+            double v = b[i * m + c];
+            for (int k = 0; k < i; k++) v -= L[i * 6 + k] * b[k * m + c];
+            b[i * m + c] = v / L[i * 6 + i];
+        }
+}
+
+/* Solve L^T x = b in place. */
+static void ltsolve6(const double *L, double *b, int64_t m) {
+    for (int i = 5; i >= 0; i--)
+        for (int64_t c = 0; c < m; c++) {
+            double v = b[i * m + c];
+            for (int k = i + 1; k < 6; k++) v -= L[k * 6 + i] * b[k * m + c];
+            b[i * m + c] = v / L[i * 6 + i];
+        }
+}
+
+/*
+ * A x = b for symmetric block-tridiagonal A with 6x6 blocks: D (n, 6, 6) diagonal,
+ * B (n-1, 6, 6) sub-diagonal (B[k] = A[k+1, k]), b (n, 6, m) overwritten by x.
+ * work: (2 n, 6, 6) doubles. Returns 0, or k + 1 if the pivot block k is not PD.
+ */
+TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
+                                         const double *B, double *b, double *work) {
+    double *L = work;            /* n x 36: Cholesky factors of the pivots */
+    double *C = work + 36 * n;   /* n-1 x 36: C_k = B_k L_k^-T */
+    for (int64_t k = 0; k < n; k++) {
+        double *Lk = L + 36 * k;
+        memcpy(Lk, D + 36 * k, 36 * sizeof(double));
+        if (k > 0) {
+            const double *Cp = C + 36 * (k - 1);
+            for (int i = 0; i < 6; i++)
+                for (int j = 0; j < 6; j++) {
+                    double v = 0.0;
+                    for (int q = 0; q < 6; q++) v += Cp[i * 6 + q] * Cp[j * 6 + q];
+                    Lk[i * 6 + j] -= v;
+                }
+            /* y_k = b_k - C_{k-1} y_{k-1} */
+            double *bk = b + 6 * m * k;
+            const double *bp = b + 6 * m * (k - 1);
+            for (int i = 0; i < 6; i++)
+                for (int64_t c = 0; c < m; c++) {
+                    double v = 0.0;
+                    for (int q = 0; q < 6; q++) v += Cp[i * 6 + q] * bp[q * m + c];
+                    bk[i * m + c] -= v;
+                }
+        }
+        if (chol6(Lk)) return k + 1;
+        lsolve6(Lk, b + 6 * m * k, m);
+        if (k + 1 < n) {
+            /* C_k = B_k L_k^-T: solve L_k C_k^T = B_k^T, i.e. rows of C_k */
+            double *Ck = C + 36 * k;
+            const double *Bk = B + 36 * k;
+            for (int i = 0; i < 6; i++)
+                for (int j = 0; j < 6; j++) {
+                    double v = Bk[i * 6 + j];
+                    for (int q = 0; q < j; q++) v -= Ck[i * 6 + q] * Lk[j * 6 + q];
+                    Ck[i * 6 + j] = v / Lk[j * 6 + j];
+                }
+        }
+    }
+    for (int64_t k = n - 1; k >= 0; k--) {
+        double *bk = b + 6 * m * k;
+        if (k + 1 < n) {
+            const double *Ck = C + 36 * k;
+            const double *xn = b + 6 * m * (k + 1);
+            for (int i = 0; i < 6; i++)
+                for (int64_t c = 0; c < m; c++) {
+                    double v = 0.0;
+                    for (int q = 0; q < 6; q++) v += Ck[q * 6 + i] * xn[q * m + c];
+                    bk[i * m + c] -= v;
+                }
+        }
+        ltsolve6(L + 36 * k, bk, m);
+    }
+    return 0;
+}
+
+TF_EXPORT int64_t tf_num_threads(void) {
+#ifdef _OPENMP
+    return omp_get_max_threads();
+#else
+    return 1;
+#endif
+}
+
+/* An (empty) importable module, so that the shared library is a regular extension that
+ * setuptools builds and installs; the functions above are called through ctypes. */
+static struct PyModuleDef kernels_module = {PyModuleDef_HEAD_INIT, "_kernels",
+                                            "turbinefit's compiled kernels (see _native.py)",
+                                            -1, NULL, NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&kernels_module); }
