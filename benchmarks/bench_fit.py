@@ -1,16 +1,20 @@
 """Accuracy and speed benchmark of ``turbinefit fit`` (the figures of issue #2).
 
-Simulates flight folders of 50, 200 and 1000 keyframes (320x240 heat-maps; cached in
-``benchmarks/data/``), then runs the real command line ``turbinefit fit FLIGHT --out OUT
---no-plots`` on each in a fresh process, measuring wall time from process start to exit,
-peak memory (max RSS), and the load and solve times the command reports. Accuracy: joint
-vs pose-only on the 200-keyframe flights (several seeds).
+Simulates flight folders (320x240 heat-maps, default preset; cached in
+``benchmarks/data/``) and runs the real command line ``turbinefit fit FLIGHT --out OUT
+--no-plots`` on each in a fresh process, measuring wall time from process start to exit
+and peak memory (max RSS), with the load and solve times the command reports.
+
+* speed: 50, 200 and 1000 keyframes (seed 0), ``--repeat`` runs each (min and median),
+  plus one run of the numpy reference implementation (``TURBINEFIT_NATIVE=0``);
+* accuracy: 200 keyframes, seeds 0-7, in joint mode (the defaults), pose-only mode, and
+  joint mode with the paper's pairwise frame (``--pair-frame estimated``).
 
 Usage::
 
-    python benchmarks/bench_fit.py [--sizes 50 200 1000] [--repeat 3] [--seeds 0 1 2]
+    python benchmarks/bench_fit.py [--sizes 50 200 1000] [--repeat 3] [--seeds 0 1 ...]
 
-Prints a table and writes ``benchmarks/results/bench_fit.json``.
+Prints tables and writes ``benchmarks/results/bench_fit.json``.
 """
 
 from __future__ import annotations
@@ -32,6 +36,13 @@ DATA = HERE / "data"
 RESULTS = HERE / "results"
 BIN = Path(sys.executable).parent / "turbinefit"
 
+#: accuracy configurations: name -> extra command-line options
+MODES = {
+    "joint": [],
+    "pose-only": ["--mode", "pose"],
+    "joint, paper's pairwise frame": ["--pair-frame", "estimated"],
+}
+
 
 def simulate(n: int, seed: int) -> Path:
     out = DATA / f"flight_n{n}_s{seed}"
@@ -41,27 +52,29 @@ def simulate(n: int, seed: int) -> Path:
     return out
 
 
-def run_fit(flight: Path, extra: list[str] | None = None) -> dict:
+def run_fit(flight: Path, extra: list[str] | None = None,
+            env: dict[str, str] | None = None) -> dict:
     """Run `turbinefit fit` in a child process; return wall time, peak RSS and the summary."""
     with tempfile.TemporaryDirectory(dir=DATA) as tmp:
         out = Path(tmp) / "fit"
-        cmd = [str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", *(extra or [])]
+        cmd = [str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", "--quiet",
+               *(extra or [])]
         log = Path(tmp) / "stderr.txt"
         with open(log, "w") as err:
             t0 = time.perf_counter()
-            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err,
+                                    env={**os.environ, **(env or {})})
             _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak memory
             wall = time.perf_counter() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        peak_kb = usage.ru_maxrss
-        if proc.returncode != 0:
+        code = os.waitstatus_to_exitcode(status)
+        if code != 0:
             raise RuntimeError(f"{' '.join(cmd)} failed: {log.read_text().strip()}")
         summary = json.loads((out / "summary.json").read_text())
-    return {"wall_s": wall, "peak_rss_mb": peak_kb / 1024.0, "summary": summary}
+    return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / 1024.0, "summary": summary}
 
 
 def warm(flight: Path) -> None:
-    """Read every file once so that all runs see the page cache (as after `simulate`)."""
+    """Read every file once so that all runs see the page cache (as right after `simulate`)."""
     for p in flight.rglob("*"):
         if p.is_file():
             with open(p, "rb") as f:
@@ -69,11 +82,29 @@ def warm(flight: Path) -> None:
                     pass
 
 
+def speed_row(n: int, runs: list[dict]) -> dict:
+    walls = [r["wall_s"] for r in runs]
+    best = runs[walls.index(min(walls))]
+    s = best["summary"]
+    acc = s.get("accuracy", {})
+    return {
+        "keyframes": n,
+        "wall_s_min": round(min(walls), 3), "wall_s_median": round(statistics.median(walls), 3),
+        "load_s": s["timing_s"]["load"], "solve_s": s["timing_s"]["solve"],
+        "write_s": s["timing_s"]["write"],
+        "iterations": s["solver"]["iterations"], "rounds": s["solver"]["rounds"],
+        "num_residuals": s["solver"]["num_residuals"],
+        "peak_rss_mb": round(max(r["peak_rss_mb"] for r in runs), 1),
+        "position_m": acc.get("after", {}).get("position_error_m"),
+        "orientation_deg": acc.get("after", {}).get("orientation_error_deg"),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 1000])
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(8)))
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_fit.json")
     args = ap.parse_args()
     DATA.mkdir(parents=True, exist_ok=True)
@@ -82,50 +113,57 @@ def main() -> None:
         sys.exit(f"{BIN} not found: run inside the project's virtual environment")
 
     speed = []
-    print("== speed: turbinefit fit FLIGHT --out OUT --no-plots (joint, defaults) ==")
-    print(f"{'N':>6} {'wall s':>8} {'load s':>8} {'solve s':>8} {'iters':>6} "
-          f"{'residuals':>10} {'peak MB':>8}")
+    print("== speed: turbinefit fit FLIGHT --out OUT --no-plots (joint, defaults, seed 0) ==")
+    head = (f"{'N':>6} {'wall min':>9} {'median':>7} {'load s':>7} {'solve s':>8} {'iters':>6} "
+            f"{'residuals':>10} {'peak MB':>8} {'pos m':>6} {'rot deg':>7}")
+    print(head)
     for n in args.sizes:
         flight = simulate(n, 0)
         warm(flight)
-        runs = [run_fit(flight) for _ in range(args.repeat)]
-        walls = [r["wall_s"] for r in runs]
-        best = runs[walls.index(min(walls))]
-        s = best["summary"]
-        row = {
-            "keyframes": n,
-            "wall_s_min": min(walls), "wall_s_median": statistics.median(walls),
-            "load_s": s["timing_s"]["load"], "solve_s": s["timing_s"]["solve"],
-            "write_s": s["timing_s"]["write"],
-            "iterations": s["solver"]["iterations"], "rounds": s["solver"]["rounds"],
-            "num_residuals": s["solver"]["num_residuals"],
-            "peak_rss_mb": max(r["peak_rss_mb"] for r in runs),
-        }
+        row = speed_row(n, [run_fit(flight) for _ in range(args.repeat)])
         speed.append(row)
-        print(f"{n:>6} {row['wall_s_min']:>8.2f} {row['load_s']:>8.2f} {row['solve_s']:>8.2f} "
-              f"{row['iterations']:>6} {row['num_residuals']:>10} {row['peak_rss_mb']:>8.0f}")
+        print(f"{n:>6} {row['wall_s_min']:>9.2f} {row['wall_s_median']:>7.2f} "
+              f"{row['load_s']:>7.2f} {row['solve_s']:>8.2f} {row['iterations']:>6} "
+              f"{row['num_residuals']:>10} {row['peak_rss_mb']:>8.0f} "
+              f"{row['position_m']:>6.3f} {row['orientation_deg']:>7.3f}")
+    reference = []
+    for n in [s for s in args.sizes if s <= 200]:
+        row = speed_row(n, [run_fit(simulate(n, 0), env={"TURBINEFIT_NATIVE": "0"})])
+        reference.append(row)
+        print(f"{n:>6} {row['wall_s_min']:>9.2f} {'':>7} {row['load_s']:>7.2f} "
+              f"{row['solve_s']:>8.2f} {row['iterations']:>6}   (numpy reference, no kernels)")
 
-    print("\n== accuracy: 200 keyframes, joint vs pose-only ==")
-    acc = []
-    for seed in args.seeds:
-        flight = simulate(200, seed)
-        for mode in ("joint", "pose"):
-            r = run_fit(flight, ["--mode", mode])
-            a = r["summary"]["accuracy"]
-            b, f = a["before"], a["after"]
-            row = {
-                "seed": seed, "mode": mode,
+    print("\n== accuracy: 200 keyframes, mean over keyframes, per seed ==")
+    acc: dict[str, list[dict]] = {}
+    for name, extra in MODES.items():
+        rows = []
+        for seed in args.seeds:
+            s = run_fit(simulate(200, seed), extra)["summary"]
+            b, f = s["accuracy"]["before"], s["accuracy"]["after"]
+            rows.append({
+                "seed": seed,
                 "position_m": [b["position_error_m"], f["position_error_m"]],
                 "orientation_deg": [b["orientation_error_deg"], f["orientation_error_deg"]],
                 "model_point_m": [b["model_point_error_m"], f["model_point_error_m"]],
-                "model_point_ratio": f["model_point_error_m"] / max(b["model_point_error_m"], 1e-12),
-            }
-            acc.append(row)
-            print(f"seed {seed} {mode:>5}: position {b['position_error_m']:.3f} -> "
-                  f"{f['position_error_m']:.3f} m, orientation {b['orientation_error_deg']:.3f} -> "
-                  f"{f['orientation_error_deg']:.3f} deg, model points "
-                  f"{b['model_point_error_m']:.3f} -> {f['model_point_error_m']:.3f} m "
-                  f"({100 * row['model_point_ratio']:.1f} %)")
+                "model_point_ratio": f["model_point_error_m"] / max(b["model_point_error_m"],
+                                                                    1e-12),
+                "iterations": s["solver"]["iterations"],
+            })
+        acc[name] = rows
+        pos = [r["position_m"][1] for r in rows]
+        rot = [r["orientation_deg"][1] for r in rows]
+        mpr = [100 * r["model_point_ratio"] for r in rows]
+        print(f"{name}:")
+        print("  position m      " + " ".join(f"{x:6.3f}" for x in pos)
+              + f"   mean {statistics.mean(pos):.3f}  max {max(pos):.3f}")
+        print("  orientation deg " + " ".join(f"{x:6.3f}" for x in rot)
+              + f"   mean {statistics.mean(rot):.3f}  max {max(rot):.3f}")
+        print("  model points %  " + " ".join(f"{x:6.1f}" for x in mpr)
+              + f"   mean {statistics.mean(mpr):.1f}  max {max(mpr):.1f}")
+    before = acc["joint"]
+    print("  initial: position m " + " ".join(f"{r['position_m'][0]:.2f}" for r in before)
+          + ", orientation deg " + " ".join(f"{r['orientation_deg'][0]:.2f}" for r in before)
+          + ", model points m " + " ".join(f"{r['model_point_m'][0]:.2f}" for r in before))
 
     result = {
         "benchmark": "bench_fit",
@@ -133,6 +171,7 @@ def main() -> None:
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                     "platform": platform.platform()},
         "speed": speed,
+        "speed_numpy_reference": reference,
         "accuracy": acc,
     }
     tmp = args.out.with_suffix(".tmp")

@@ -513,7 +513,8 @@ def _subparsers() -> dict[str, argparse.ArgumentParser]:
     ("simulate", ["OUT_DIR", "--keyframes", "--seed", "--preset", "--width", "--height",
                   "--overwrite", "--quiet", "--list-presets", "--second-turbine"]),
     ("fit", ["FLIGHT_DIR", "--out", "--mode", "--points", "--lines", "--config", "--preset",
-             "--no-plots", "--overwrite", "--quiet", "--max-iterations", "joint", "interp"]),
+             "--no-plots", "--overwrite", "--quiet", "--max-iterations", "joint", "interp",
+             "--pair-frame", "--no-warmup", "align", "match"]),
 ])
 def test_help(command: str, must_mention: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     argv = [command, "--help"] if command else ["--help"]
@@ -539,6 +540,9 @@ def test_help(command: str, must_mention: list[str], capsys: pytest.CaptureFixtu
     ([], r"COMMAND"),
     (["simulate", "x", "--seed", "-1"], r"--seed: must be a non-negative whole number"),
     (["simulate", "x", "--seed", "1.5"], r"--seed: expected a whole number"),
+    (["fit", "somewhere", "--out", "x", "--preset", "all-corr", "--config", "c.yaml"],
+     r"not allowed with argument"),
+    (["fit", "somewhere", "--out", "x", "--pair-frame", "world"], r"invalid choice: 'world'"),
 ])
 def test_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
                       capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:

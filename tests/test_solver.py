@@ -129,6 +129,14 @@ def test_fit_config_validation():
         FitConfig(pixel_sigma=-1.0)
     with pytest.raises(ValueError, match="unknown fit option"):
         FitConfig.from_dict({"nonsense": 1})
+    with pytest.raises(ValueError, match="samples_per_line"):
+        FitConfig(samples_per_line=2.5)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="pair_information"):
+        FitConfig(pair_information=(float("nan"),) * 36)
+    with pytest.raises(ValueError, match="pair_frame"):
+        FitConfig(pair_frame="world")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="warmup_match_rounds"):
+        FitConfig(warmup_match_rounds=-1)
     cfg = FitConfig(points="interp", robust="huber")
     assert FitConfig.from_dict(cfg.to_dict()) == cfg
 
@@ -145,3 +153,24 @@ def test_joint_recovers_noiseless_flight_with_wrong_turbine(seed):
     assert after.model_point_error_m < 0.1
     assert after.position_error_m < 0.1
     assert after.orientation_error_deg < 0.05
+
+
+def test_warmup_widens_the_basin():
+    """Heading and blade rotation 12 deg off (the interp basin is a few pixels): the
+    correspondence warm-up brings the fit in; without it, the refine stage stalls."""
+    fl = simulate_flight(preset("noiseless", n_keyframes=60, seed=1))
+    v = fl.gt_turbine.to_vector() + np.array([1.5, -1.5, 3.0, math.radians(12), 0.8,
+                                              math.radians(12), -3.0])
+    start = TurbineParams.from_vector(v)
+    before = accuracy(fl.world_T_cam, start, fl.gt_world_T_cam, fl.gt_turbine)
+    warm = fit(fl, FitConfig(), initial_turbine=start)
+    cold = fit(fl, FitConfig(warmup=False), initial_turbine=start)
+    aw = accuracy(warm.world_T_cam, warm.turbine, fl.gt_world_T_cam, fl.gt_turbine)
+    ac = accuracy(cold.world_T_cam, cold.turbine, fl.gt_world_T_cam, fl.gt_turbine)
+    assert aw.model_point_error_m < 0.05 * before.model_point_error_m
+    assert aw.position_error_m < 0.5 < before.position_error_m
+    assert ac.model_point_error_m > 2 * aw.model_point_error_m
+    stages = [h.stage for h in warm.history]
+    assert stages[0] == "align" and "match" in stages and stages[-1] == "refine"
+    assert stages == sorted(stages, key=["align", "match", "refine"].index)
+    assert {h.stage for h in cold.history} == {"refine"}

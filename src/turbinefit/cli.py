@@ -107,21 +107,26 @@ def build_parser() -> argparse.ArgumentParser:
     dflt = FitConfig()
     f = sub.add_parser(
         "fit", help="optimise poses and turbine of a flight folder",
-        description="Refine every keyframe pose and the 7 turbine parameters with "
-        "Levenberg-Marquardt on the heat-maps and the GPS/IMU relative poses. Writes "
-        "OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs, iterations, "
-        "timings, and errors before/after when ground truth exists), config.yaml (the "
-        "resolved options) and plots. Every option of turbinefit.FitConfig can also be set "
-        "in a --config YAML file; command-line options override it.",
+        description=(
+            "Refine every keyframe pose and the 7 turbine parameters with Levenberg-Marquardt\n"
+            "on the heat-maps and the GPS/IMU relative poses: first two correspondence\n"
+            "stages (align: the trajectory moves nearly rigidly; match: each keyframe), then\n"
+            "the configured cost.\n\n"
+            "Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs,\n"
+            "iterations, timings, and errors before/after when ground truth exists),\n"
+            "config.yaml (the resolved options) and plots. Every option of\n"
+            "turbinefit.FitConfig can be set in a --config YAML file; command-line options\n"
+            "override it."),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
     f.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
                    help="output folder (written atomically; never the input folder)")
-    f.add_argument("--config", type=Path, default=None,
-                   help="YAML file of fit options (e.g. a previous run's config.yaml)")
-    f.add_argument("--preset", default=None,
-                   help="named configuration: paper-best (default), all-interp, all-corr, "
-                   "paper-worst, pose-only, turbine-only")
+    base = f.add_mutually_exclusive_group()
+    base.add_argument("--config", type=Path, default=None,
+                      help="YAML file of fit options (e.g. a previous run's config.yaml)")
+    base.add_argument("--preset", default=None,
+                      help="named configuration: paper-best (default), all-interp, all-corr, "
+                      "paper-worst, pose-only, turbine-only")
 
     def opt(flag: str, name: str, help: str, **kw: Any) -> None:
         f.add_argument(flag, dest=name, default=None,
@@ -139,6 +144,12 @@ def build_parser() -> argparse.ArgumentParser:
     opt("--lambda-lines", "lambda_lines", "weight lambda_L of the line term", type=_float)
     opt("--lambda-pair", "lambda_pair", "weight lambda of the pairwise term", type=_float)
     opt("--pixel-sigma", "pixel_sigma", "correspondence noise [px]", type=_float)
+    opt("--line-residual", "line_residual", "residual of line correspondences: 2-D distance to "
+        "the found point (the paper's) or distance along the search normal",
+        choices=["point", "normal"])
+    opt("--pair-frame", "pair_frame", "frame of the relative translation: measured (GPS/IMU "
+        "attitude: right for GPS positions) or estimated (the paper's: right for body-frame "
+        "odometry such as VIO)", choices=["measured", "estimated"])
     opt("--pair-sigma-t", "pair_sigma_t", "relative-pose translation std. dev. [m]",
         type=_float)
     opt("--pair-sigma-t-per-m", "pair_sigma_t_per_m",
@@ -155,6 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
     opt("--max-iterations", "max_iterations", "LM iterations per round", type=_positive_int)
     opt("--max-rounds", "max_rounds", "rounds (correspondences re-found after each)",
         type=_positive_int)
+    f.add_argument("--no-warmup", dest="warmup", action="store_const", const=False,
+                   default=None, help="skip the correspondence warm-up stages (align, match) "
+                   "and start with the configured cost")
     f.add_argument("--no-plots", action="store_true", help="skip the figures")
     f.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
@@ -169,9 +183,10 @@ def _version() -> str:
 
 
 _FIT_OPTIONS = ("mode", "points", "lines", "samples_per_line", "line_sampling", "lambda_points",
-                "lambda_lines", "lambda_pair", "pixel_sigma", "pair_sigma_t",
-                "pair_sigma_t_per_m", "pair_sigma_r_deg", "heatmap_floor", "robust",
-                "robust_scale", "gauge", "gps_sigma", "max_iterations", "max_rounds")
+                "lambda_lines", "lambda_pair", "pixel_sigma", "line_residual", "pair_frame",
+                "pair_sigma_t", "pair_sigma_t_per_m", "pair_sigma_r_deg", "heatmap_floor",
+                "robust", "robust_scale", "gauge", "gps_sigma", "warmup", "max_iterations",
+                "max_rounds")
 
 
 def _resolve_fit_config(args: argparse.Namespace) -> Any:
@@ -212,7 +227,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         def progress(rec: Any) -> None:
             assert bar is not None
             bar.update(1)
-            bar.set_postfix_str(f"round {rec.round} cost {rec.cost:.6g}")
+            bar.set_postfix_str(f"{rec.stage} round {rec.round} cost {rec.cost:.6g}")
 
     try:
         report = fit_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,

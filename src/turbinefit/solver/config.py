@@ -135,12 +135,10 @@ class FitConfig:
             raise bad("pair_frame", "must be measured or estimated")
         if self.robust not in ("none", "huber", "cauchy"):
             raise bad("robust", "must be none, huber or cauchy")
-        if self.samples_per_line < 1:
-            raise bad("samples_per_line", "must be at least 1")
-        for name in ("max_iterations", "max_rounds", "stall_iterations",
+        for name in ("samples_per_line", "max_iterations", "max_rounds", "stall_iterations",
                      "warmup_iterations"):
             v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
                 raise bad(name, "must be a whole number >= 1")
         positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
                     "line_search", "robust_scale", "gps_sigma",
@@ -165,8 +163,12 @@ class FitConfig:
             raise bad("heatmap_floor", "must be in [1e-4, 1)")
         if not 0 < self.corr_threshold < 1:
             raise bad("corr_threshold", "must be in (0, 1)")
-        if self.pair_information is not None and len(self.pair_information) != 36:
-            raise bad("pair_information", "needs 36 values (a 6x6 matrix)")
+        if self.pair_information is not None:
+            if len(self.pair_information) != 36:
+                raise bad("pair_information", "needs 36 values (a 6x6 matrix)")
+            if not all(isinstance(x, int | float) and not isinstance(x, bool)
+                       and math.isfinite(x) for x in self.pair_information):
+                raise bad("pair_information", "must be 36 finite numbers")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)

@@ -1,0 +1,119 @@
+"""The compiled kernels against their numpy twins: same normal equations, costs,
+correspondences, projections and linear solves, on flights with faults and distortion."""
+
+import numpy as np
+import pytest
+
+from turbinefit import _native
+from turbinefit.costs.projection import project_points
+from turbinefit.heatmaps import HeatmapStack, NonFiniteHeatmapError
+from turbinefit.sim.scenario import preset, simulate_flight
+from turbinefit.solver.config import FitConfig
+from turbinefit.solver.linalg import solve_block_tridiagonal
+from turbinefit.solver.problem import FitProblem
+
+pytestmark = pytest.mark.skipif(not _native.available(), reason="compiled kernels not built")
+
+
+def both(monkeypatch, fn):
+    """``fn()`` with numpy, then with the compiled kernels."""
+    monkeypatch.setenv("TURBINEFIT_NATIVE", "0")
+    assert not _native.available()
+    a = fn()
+    monkeypatch.setenv("TURBINEFIT_NATIVE", "1")
+    assert _native.available()
+    return a, fn()
+
+
+@pytest.fixture(scope="module", params=["hard", "distorted"])
+def flight(request):
+    return simulate_flight(preset(request.param, n_keyframes=12, seed=3))
+
+
+@pytest.mark.parametrize("kw", [
+    {},
+    {"points": "interp", "lines": "corr", "robust": "none"},
+    {"lines": "corr", "line_residual": "normal", "robust": "cauchy"},
+    {"line_sampling": "uniform", "mode": "pose"},
+    {"points": "interp", "lines": "interp", "border_margin": 0.0},
+])
+def test_linearization_matches_numpy(monkeypatch, flight, kw):
+    prob = FitProblem(flight, FitConfig(**kw))
+    poses, theta = flight.world_T_cam, flight.turbine.to_vector()
+    monkeypatch.setenv("TURBINEFIT_NATIVE", "0")
+    corr = prob.find_correspondences(poses, theta)
+    a, b = both(monkeypatch, lambda: prob.linearize(poses, theta, corr))
+    assert a.in_view == b.in_view and a.num_residuals == b.num_residuals
+    assert a.cost == pytest.approx(b.cost, rel=1e-12)
+    for k in a.terms:
+        assert a.terms[k] == pytest.approx(b.terms[k], rel=1e-12, abs=1e-12)
+    for name in ("D", "B", "C", "E", "g_p", "g_t"):
+        x, y = getattr(a, name), getattr(b, name)
+        if x is None:
+            assert y is None
+            continue
+        np.testing.assert_allclose(y, x, rtol=1e-10, atol=1e-10 * np.abs(x).max())
+    c, d = both(monkeypatch, lambda: prob.linearize(poses, theta, corr, with_jacobian=False))
+    assert c.cost == pytest.approx(d.cost, rel=1e-12) and d.D is None
+
+
+def test_correspondences_match_numpy(monkeypatch, flight):
+    prob = FitProblem(flight, FitConfig(lines="corr"))
+    poses, theta = flight.world_T_cam, flight.turbine.to_vector()
+    a, b = both(monkeypatch, lambda: prob.find_correspondences(poses, theta))
+    for kind in ("point", "line"):
+        fa, fb = getattr(a, f"{kind}_found"), getattr(b, f"{kind}_found")
+        np.testing.assert_array_equal(fa, fb)
+        assert fa.sum() > 0
+        np.testing.assert_allclose(getattr(b, f"{kind}_target")[fb],
+                                   getattr(a, f"{kind}_target")[fa], atol=1e-9)
+    np.testing.assert_allclose(b.line_fractions, a.line_fractions)
+
+
+def test_projection_matches_numpy(monkeypatch, flight):
+    rng = np.random.default_rng(0)
+    up = np.array([0.0, 0.0, 60.0])
+    for pts in (rng.normal(scale=60, size=(40, 3)) + up,
+                rng.normal(scale=60, size=(flight.num_keyframes, 40, 3)) + up):
+        a, b = both(monkeypatch, lambda p=pts: project_points(
+            flight.camera, flight.world_T_cam, p, None, with_jacobian=False))
+        np.testing.assert_array_equal(a.front, b.front)
+        np.testing.assert_array_equal(a.inside, b.inside)
+        np.testing.assert_allclose(b.uv[a.front], a.uv[a.front], rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 40])
+def test_block_tridiagonal_solve_matches_numpy(monkeypatch, n):
+    rng = np.random.default_rng(n)
+    D = rng.normal(size=(n, 6, 6))
+    D = D @ np.swapaxes(D, 1, 2) + 6 * np.eye(6)
+    B = 0.5 * rng.normal(size=(max(n - 1, 0), 6, 6))
+    b = rng.normal(size=(n, 6, 8))
+    x0, x1 = both(monkeypatch, lambda: solve_block_tridiagonal(D, B, b))
+    np.testing.assert_allclose(x1, x0, rtol=1e-10, atol=1e-12)
+
+
+def test_not_positive_definite_raises(monkeypatch):
+    monkeypatch.setenv("TURBINEFIT_NATIVE", "1")
+    D = np.tile(np.eye(6), (3, 1, 1))
+    D[1, 2, 2] = -1.0
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_block_tridiagonal(D, np.zeros((2, 6, 6)), np.ones((3, 6, 1)))
+
+
+def test_non_finite_heatmap_is_reported_with_its_keyframe(monkeypatch, flight):
+    maps = np.stack([flight.heatmaps[k] for k in range(flight.num_keyframes)]).copy()
+    maps[4] = np.nan
+    bad = type(flight)(**{**flight.__dict__, "heatmaps": HeatmapStack(maps)})
+    prob = FitProblem(bad, FitConfig(lines="corr"))
+    poses, theta = bad.world_T_cam, bad.turbine.to_vector()
+    for native in ("0", "1"):
+        monkeypatch.setenv("TURBINEFIT_NATIVE", native)
+        with pytest.raises(NonFiniteHeatmapError) as info:
+            prob.find_correspondences(poses, theta)
+        assert info.value.keyframe == 4
+        prob2 = FitProblem(bad, FitConfig(points="interp", lines="interp",
+                                         line_sampling="uniform"))
+        with pytest.raises(NonFiniteHeatmapError) as info:
+            prob2.linearize(poses, theta, prob2.find_correspondences(poses, theta))
+        assert info.value.keyframe == 4
