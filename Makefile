@@ -9,7 +9,7 @@ DEMO   := demo
 
 .PHONY: demo test bench lint typecheck check clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'

@@ -212,3 +212,7 @@ def test_plot_cost_history(tmp_path):
     assert_png(plot_cost_history(tmp_path / "cost.png", costs), 800, 500)
     assert_png(plot_cost_history(tmp_path / "cost_empty.png", []))
     assert_png(plot_cost_history(tmp_path / "cost_zero.png", [3.0, 0.0, float("nan")]))
+    stages = ["align"] * 5 + ["match"] * 4 + ["refine"] * 6
+    assert_png(plot_cost_history(tmp_path / "cost_stages.png", costs, stages), 800, 500)
+    with pytest.raises(ValueError, match="stage names"):
+        plot_cost_history(tmp_path / "bad.png", costs, stages[:-1])

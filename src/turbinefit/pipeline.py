@@ -295,8 +295,8 @@ def write_plots(out: Path, flight: Flight, result: FitResult) -> None:
                           initial_pos_err=p0, optimised_pos_err=p1,
                           initial_rot_err_deg=np.degrees(r0), optimised_rot_err_deg=np.degrees(r1))
     if result.history:
-        plots.plot_cost_history(out / "cost.png",
-                                [result.initial_cost] + [h.cost for h in result.history])
+        plots.plot_cost_history(out / "cost.png", [h.cost for h in result.history],
+                                [h.stage for h in result.history])
 
 
 def simulate_folder(

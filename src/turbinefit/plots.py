@@ -507,8 +507,12 @@ def plot_errors(
     return _save(fig, path)
 
 
-def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[float]) -> Path:
-    """The total cost after each LM iteration (iteration 0 = the initial cost), log y.
+def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[float],
+                      stages: Sequence[str] | None = None) -> Path:
+    """The cost after each LM iteration, log y; with ``stages`` (one name per cost, e.g.
+    align / match / refine) each stage in its own colour: the stages minimise different
+    costs (the warm-up's correspondences, then the configured cost), so only values within
+    one stage compare.
 
     Non-positive or non-finite costs are left out of the log plot (the y axis falls back to
     linear if nothing positive remains).
@@ -519,22 +523,33 @@ def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[floa
     c = _series(list(history_costs))
     it = np.arange(c.size)
     ok = np.isfinite(c) & (c > 0)
+    names = list(stages) if stages is not None else [""] * c.size
+    if len(names) != c.size:
+        raise ValueError(f"{c.size} costs but {len(names)} stage names")
 
     fig = _new_figure(7.0, 4.2)
     ax = fig.add_subplot(1, 1, 1)
-    ax.plot(it[ok], c[ok], color=OPTIMISED_COLOUR, lw=1.5, marker="o", ms=3.5)
+    palette = [OPTIMISED_COLOUR, "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b"]
+    order = list(dict.fromkeys(names))
+    for k, name in enumerate(order):
+        sel = ok & (np.asarray(names) == name)
+        ax.plot(it[sel], c[sel], color=palette[k % len(palette)], lw=1.5, marker="o", ms=3.5,
+                label=name or None)
+    if stages is not None and order:
+        ax.legend(loc="upper right", fontsize=9, title="stage", title_fontsize=9)
     if np.any(ok):
         ax.set_yscale("log")
-        first, last = c[ok][0], c[ok][-1]
-        ax.set_title(f"LM cost: {first:.4g} -> {last:.4g} in {c.size - 1} iterations",
-                     fontsize=11)
+        last = c[ok][-1]
+        ax.set_title(f"LM cost per iteration: {c.size} iterations, final {last:.4g}"
+                     + (" (each stage minimises its own cost)" if len(order) > 1 else ""),
+                     fontsize=10)
     else:
         ax.set_title("LM cost (no positive values)", fontsize=11)
     ax.set_xlabel("iteration")
     ax.set_ylabel("cost")
     ax.grid(True, which="both", color="0.9", lw=0.6)
     if c.size:
-        ax.set_xlim(-0.3, max(c.size - 1, 1) + 0.3)
+        ax.set_xlim(-0.7, max(c.size - 1, 1) + 0.3)
         from matplotlib.ticker import MaxNLocator
 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))

@@ -1,4 +1,20 @@
-"""Fit a flight: the outer correspondence loop around Levenberg-Marquardt."""
+"""Fit a flight: stages of correspondence rounds around Levenberg-Marquardt.
+
+1. *align* (warm-up): point and line correspondences (20 px search windows, a Huber loss,
+   line residuals along the search normal so that the model may slide along its lines) on
+   a pose graph stiffened ``warmup_stiffness`` times: the trajectory moves nearly rigidly,
+   with the turbine, onto the heat-maps, which removes most of the smooth GPS/IMU drift
+   and the turbine's error.
+2. *match* (warm-up): the same correspondences on the normal pose graph: each keyframe
+   comes within a few pixels of its heat-maps.
+3. *refine*: the configured cost (by default the paper's best: point correspondences and
+   heat-map interpolation for the lines) to convergence.
+
+Each stage runs rounds: LM with fixed correspondences (and visible-part line samples),
+then a new search; a stage ends when a search changes almost nothing. The heat-map term's
+basin is a few pixels wide, so without the warm-up (``warmup=False``) initial errors of a
+few degrees in heading or blade rotation leave it stranded (see the tests).
+"""
 
 from __future__ import annotations
 
@@ -91,7 +107,8 @@ def _stages(flight: Flight, cfg: FitConfig, problem: FitProblem,
             cfg, points="corr" if cfg.points != "none" else "none",
             lines="corr" if cfg.lines != "none" else "none",
             pixel_sigma=cfg.warmup_pixel_sigma, robust="huber", robust_scale=2.0,
-            line_residual="normal")
+            line_residual="normal", function_tolerance=cfg.warmup_function_tolerance,
+            stall_iterations=1)
         moves_poses = cfg.mode != "turbine" and problem.num_keyframes > 1
         if moves_poses and cfg.warmup_align_rounds > 0 and cfg.lambda_pair > 0:
             align = dataclasses.replace(corr_cfg, lambda_pair=cfg.lambda_pair * cfg.warmup_stiffness)
