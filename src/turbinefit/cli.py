@@ -28,24 +28,22 @@ Flight folder (input of fit, output of simulate):
 """
 
 
-def _positive_int(text: str) -> int:
+def _whole_number(text: str, minimum: int, why: str) -> int:
     try:
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    if v < minimum:
+        raise argparse.ArgumentTypeError(f"{why}, got {v}")
     return v
+
+
+def _positive_int(text: str) -> int:
+    return _whole_number(text, 1, "must be at least 1")
 
 
 def _seed(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative whole number, got {v}")
-    return v
+    return _whole_number(text, 0, "must be a non-negative whole number")
 
 
 def _float(text: str) -> float:
