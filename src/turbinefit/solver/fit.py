@@ -166,7 +166,8 @@ def fit(
                     else Correspondences())
         lin = prob.linearize(poses, theta, corr)
         mu = cfg.initial_damping
-        for _ in range(stage.rounds):
+        final_stage = stage is stages[-1]
+        for r in range(stage.rounds):
             rounds += 1
             out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds,
                                       mu=mu, max_iterations=stage.iterations,
@@ -175,13 +176,18 @@ def fit(
             mu = max(out.mu, cfg.initial_damping)
             iterations += out.iterations
             termination = out.termination
-            if not prob.needs_correspondences:
-                break
+            last = r == stage.rounds - 1
+            if not prob.needs_correspondences or (last and not final_stage):
+                break  # (the next stage searches for its own correspondences)
             new_corr = prob.find_correspondences(poses, theta)
             flips, shift = _corr_change(corr, new_corr)
             corr = new_corr
-            lin = prob.linearize(poses, theta, corr)
-            if flips < 0.005 and shift < 0.25:
+            done = last or (flips < 0.005 and shift < 0.25)
+            if done and not final_stage:
+                break
+            # the final cost is measured with the correspondences of the final estimate
+            lin = prob.linearize(poses, theta, corr, with_jacobian=not done)
+            if done:
                 break
     turbine = TurbineParams.from_vector(theta).canonical()
     return FitResult(
