@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.heatmaps import NonFiniteHeatmapError
+
 FloatArray = NDArray[np.float64]
 
 _f64 = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
@@ -78,6 +80,12 @@ def num_threads() -> int:
     return int(_LIB.tf_num_threads()) if _LIB is not None else 1
 
 
+def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
+    """A kernel returned the first row ``bad`` (>= 0) whose heat-map had a NaN or inf."""
+    if bad >= 0:
+        raise NonFiniteHeatmapError(int(keyframes[bad]))
+
+
 def _c(a: Any, dtype: Any) -> NDArray[Any]:
     return np.ascontiguousarray(a, dtype=dtype)
 
@@ -94,13 +102,13 @@ def image_terms(
     found: NDArray[np.bool_] | None, normal: FloatArray | None, lam: float,
     pixel_sigma: float, margin: float, floor: float, robust: str, robust_scale: float,
     with_jacobian: bool, JtHJ: FloatArray | None, g: FloatArray | None,
-) -> tuple[FloatArray, NDArray[np.int64], int]:
+) -> tuple[FloatArray, NDArray[np.int64]]:
     """One image term over N keyframes and M points (see ``tf_image_terms``).
 
     Points are ``(1 - f) A + f B`` with ``f = frac`` (N, M) (None: f = 0), their theta
     Jacobians ``(1 - f) JA + f JB`` (M, 3, 7). Adds ``J^T H J`` and ``J^T g`` into ``JtHJ``
-    (N, 13, 13) and ``g`` (N, 13) in place. Returns the per-keyframe cost (N,), the points
-    in view (N,) and the first keyframe row whose heat-map had a non-finite value (-1)."""
+    (N, 13, 13) and ``g`` (N, 13) in place. Returns the per-keyframe cost (N,) and the
+    points in view (N,); raises NonFiniteHeatmapError on a NaN or inf heat-map value."""
     assert _LIB is not None
     N, M = poses.shape[0], A.shape[0]
     cost = np.zeros(N)
@@ -119,7 +127,8 @@ def image_terms(
         _opt(tg), _opt(fd), _opt(nm), par, int(with_jacobian),
         None if JtHJ is None else JtHJ.ctypes.data, None if g is None else g.ctypes.data,
         cost, count)
-    return cost, count, int(bad)
+    _check(int(bad), keyframes)
+    return cost, count
 
 
 def project(poses: FloatArray, camera_params: FloatArray, width: int, height: int,
@@ -140,7 +149,7 @@ def point_search(
     maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, usable: NDArray[np.bool_], radius: int,
     coarse: NDArray[np.int64], fine: NDArray[np.int64], threshold: float,
-) -> tuple[FloatArray, NDArray[np.bool_], int]:
+) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Circular-window search (see correspondence.find_point_correspondences)."""
     assert _LIB is not None
     N, M = uv.shape[:2]
@@ -150,14 +159,15 @@ def point_search(
         N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], threshold, target, found)
-    return target, found.astype(bool), int(bad)
+    _check(int(bad), keyframes)
+    return target, found.astype(bool)
 
 
 def line_search(
     maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, normal: FloatArray,
     usable: NDArray[np.bool_], half_length: int, threshold: float,
-) -> tuple[FloatArray, NDArray[np.bool_], int]:
+) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Perpendicular search (see correspondence.find_line_correspondences)."""
     assert _LIB is not None
     N, M = uv.shape[:2]
@@ -167,7 +177,8 @@ def line_search(
         N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
         threshold, target, found)
-    return target, found.astype(bool), int(bad)
+    _check(int(bad), keyframes)
+    return target, found.astype(bool)
 
 
 def block_tridiag_solve(D: FloatArray, B: FloatArray, b: FloatArray) -> FloatArray:

@@ -70,16 +70,15 @@ class HeatmapStack:
             self.height, self.width = int(shape[1]), int(shape[2])
         # flat views (no copies for C-contiguous arrays) used by gather()
         self._flat = [m.reshape(-1) for m in self._list]
+        arrays = list(self._stacked) if self._stacked is not None else self._list
+        # addresses for the compiled kernels (checked once: the arrays are never replaced)
         self._pointers: NDArray[np.uint64] | None = None
+        if all(a.dtype == np.float32 and a.flags.c_contiguous for a in arrays):
+            self._pointers = np.array([a.ctypes.data for a in arrays], dtype=np.uint64)
 
     def pointers(self) -> NDArray[np.uint64] | None:
         """Address of each keyframe's float32 (7, H, W) data, for the compiled kernels; None
         unless every keyframe is C-contiguous float32. Valid while this stack lives."""
-        if self._pointers is None:
-            arrays = (list(self._stacked) if self._stacked is not None else self._list)
-            if not all(a.dtype == np.float32 and a.flags.c_contiguous for a in arrays):
-                return None
-            self._pointers = np.array([a.ctypes.data for a in arrays], dtype=np.uint64)
         return self._pointers
 
     def __len__(self) -> int:

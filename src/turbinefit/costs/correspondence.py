@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit import _native
-from turbinefit.heatmaps import HeatmapStack, NonFiniteHeatmapError
+from turbinefit.heatmaps import HeatmapStack
 
 FloatArray = NDArray[np.float64]
 
@@ -104,12 +104,8 @@ def find_point_correspondences(
     R = max(1, round(radius))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
-        target, found, bad = _native.point_search(
-            maps, W, H, keyframes, channels, uv, usable, R, _disc_offsets(R, 2), _SQUARE5,
-            threshold)
-        if bad >= 0:
-            raise NonFiniteHeatmapError(int(keyframes[bad]))
-        return target, found
+        return _native.point_search(maps, W, H, keyframes, channels, uv, usable, R,
+                                    _disc_offsets(R, 2), _SQUARE5, threshold)
     centre = np.rint(uv).astype(np.int64)
     base = (channels.astype(np.int64) * (H * W))[None, :, None]
     _, bu, bv = _window_max(heatmaps, keyframes, base, centre, _disc_offsets(R, 2), usable,
@@ -173,11 +169,8 @@ def find_line_correspondences(
     L = max(1, round(half_length))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
-        target, found, bad = _native.line_search(maps, W, H, keyframes, channels, uv, normal,
-                                                 usable, L, threshold)
-        if bad >= 0:
-            raise NonFiniteHeatmapError(int(keyframes[bad]))
-        return target, found
+        return _native.line_search(maps, W, H, keyframes, channels, uv, normal, usable, L,
+                                   threshold)
     N, M = uv.shape[:2]
     coarse = np.arange(-L, L + 1, 2, dtype=np.float64)
     vc = _profile(heatmaps, keyframes, channels, uv, normal, usable,

@@ -42,7 +42,6 @@ from turbinefit.costs.projection import project_points
 from turbinefit.costs.robust import RobustLoss
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
-from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.solver.config import FitConfig
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
@@ -246,9 +245,9 @@ class FitProblem:
                      channels: NDArray[np.int_], lam: float, poses: SE3,
                      target: FloatArray | None, found: NDArray[np.bool_] | None,
                      normal: FloatArray | None,
-                     with_jacobian: bool) -> tuple[float, int, int, tuple[FloatArray, FloatArray,
-                                                                          FloatArray] | None]:
-        """One image term: cost, residual count, points in view, and with the Jacobian
+                     with_jacobian: bool) -> tuple[float, int, tuple[FloatArray, FloatArray,
+                                                                     FloatArray] | None]:
+        """One image term: cost, points in view, and with the Jacobian
         ``(g, H, J)``: gradient (N, M, 2) and PSD Hessian model (N, M, 2, 2) of the cost
         w.r.t. each point's pixel, and d uv / d x (N, M, 2, 13). Robustified."""
         cfg = self.config
@@ -264,7 +263,6 @@ class FitProblem:
                                cfg.border_margin, cfg.heatmap_floor, with_jacobian)
             s, g, H = ht.s, ht.g, ht.H
             n_in = int(pr.inside.sum())
-            n_res = s.size
         else:
             assert target is not None and found is not None
             use = found & pr.front
@@ -276,45 +274,38 @@ class FitProblem:
                     g = info * d
                     H = np.zeros((*s.shape, 2, 2))
                     H[..., 0, 0] = H[..., 1, 1] = info * use
-                n_res = 2 * s.size
             else:  # distance along the search normal: free to slide along the line
                 dn = np.sum(d * normal, axis=-1)
                 s = info * dn * dn
                 if with_jacobian:
                     g = (info * dn)[..., None] * normal
                     H = (info * use)[..., None, None] * (normal[..., :, None] * normal[..., None, :])
-                n_res = s.size
             n_in = int(use.sum())
         rho, drho = self.loss.evaluate(s)
         cost = 0.5 * float(rho.sum())
         if not with_jacobian:
-            return cost, n_res, n_in, None
+            return cost, n_in, None
         assert g is not None and H is not None and pr.J is not None
         if self.loss.name != "none":  # iteratively reweighted: rho'(s) scales g and H
             g = g * drho[..., None]
             H = H * drho[..., None, None]
-        return cost, n_res, n_in, (g, H, pr.J)
+        return cost, n_in, (g, H, pr.J)
 
     def _image_block_native(self, maps: NDArray[np.uint64], kind: str, smp: Samples,
                             channels: NDArray[np.int_], lam: float, poses: SE3,
                             target: FloatArray | None, found: NDArray[np.bool_] | None,
                             normal: FloatArray | None, JtHJ: FloatArray | None,
-                            g: FloatArray | None) -> tuple[float, int, int]:
+                            g: FloatArray | None) -> tuple[float, int]:
         """:meth:`_image_block` by the compiled kernel, adding into ``JtHJ`` and ``g``
-        (when given); returns cost, points in view and residual count."""
+        (when given); returns cost and points in view."""
         cfg = self.config
         cam = self.flight.camera
-        cost, count, bad = _native.image_terms(
+        cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
-            smp.JA if JtHJ is not None else None, smp.JB if JtHJ is not None else None,
-            smp.f, channels, maps, self.keyframes, kind, target, found, normal, lam,
+            smp.JA, smp.JB, smp.f, channels, maps, self.keyframes, kind, target, found, normal, lam,
             cfg.pixel_sigma, cfg.border_margin, cfg.heatmap_floor, cfg.robust,
             cfg.robust_scale, JtHJ is not None, JtHJ, g)
-        if bad >= 0:
-            raise NonFiniteHeatmapError(int(self.keyframes[bad]))
-        N, M = poses.batch_shape[0], smp.A.shape[0]
-        n_res = N * M * (2 if kind == "corr" and normal is None else 1)
-        return float(cost.sum()), int(count.sum()), n_res
+        return float(cost.sum()), int(count.sum())
 
     def linearize(self, poses: SE3, theta: FloatArray, corr: Correspondences,
                   with_jacobian: bool = True) -> Linearization:
@@ -338,17 +329,16 @@ class FitProblem:
         for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
+            # residuals per point: 2 for a 2-D correspondence, 1 otherwise
+            n_res += N * smp.A.shape[0] * (2 if kind == "corr" and nrm is None else 1)
             if maps is not None:
-                terms[name], n_in, nr = self._image_block_native(
+                terms[name], in_view[name] = self._image_block_native(
                     maps, kind, smp, ch, lam, poses, tgt, fnd, nrm, JtHJ, g_u)
-                in_view[name] = n_in
-                n_res += nr
                 continue
-            c, nr, n_in, der = self._image_block(kind, smp, ch, lam, poses, tgt, fnd, nrm,
-                                                 with_jacobian)
+            c, n_in, der = self._image_block(kind, smp, ch, lam, poses, tgt, fnd, nrm,
+                                             with_jacobian)
             terms[name] = c
             in_view[name] = n_in
-            n_res += nr
             if der is not None:
                 assert JtHJ is not None and g_u is not None
                 g, H, J = der
