@@ -6,20 +6,28 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
+# the CPU build of PyTorch (training only); an unpinned torch pulls a multi-GB CUDA build
+TORCH  := 2.13.0
+MODEL_IMAGES ?= 24000
+MODEL_EPOCHS ?= 8
 
-.PHONY: demo test bench lint typecheck check clean
+.PHONY: demo test bench model lint typecheck check clean
 
 $(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/pip install --quiet torch==$(TORCH)
+	$(BIN)/pip install --quiet -e '.[dev,train]'
 	touch $(STAMP)
 
-## demo: simulate a 200-keyframe flight, fit it, write results and plots to demo/
+## demo: render a 200-keyframe flight with photos, detect heat-maps with the shipped CNN,
+##       fit it, and write results and plots to demo/
 demo: $(STAMP)
-	$(BIN)/turbinefit simulate $(DEMO)/flight --keyframes 200 --seed 1 --overwrite
-	$(BIN)/turbinefit fit $(DEMO)/flight --out $(DEMO)/fit --overwrite
-	@echo "results and plots: $(DEMO)/fit (summary.json, scene.png, reprojections.png)"
+	$(BIN)/turbinefit simulate $(DEMO)/flight --keyframes 200 --seed 1 --images --overwrite
+	$(BIN)/turbinefit detect $(DEMO)/flight/images/40.000000.png $(DEMO)/flight/images/120.000000.png \
+		--out $(DEMO)/detect --overwrite
+	$(BIN)/turbinefit fit $(DEMO)/flight --from-images --points interp --robust cauchy --out $(DEMO)/fit --overwrite
+	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit"
 
 ## test: run the test suite
 test: $(STAMP)
@@ -28,6 +36,13 @@ test: $(STAMP)
 ## bench: accuracy and speed figures (writes benchmarks/results/*.json)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fit.py
+	$(BIN)/python benchmarks/bench_detect.py
+
+## model: train the shipped heat-map CNN from scratch (about 1.5 h on 2 cores)
+model: $(STAMP)
+	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS)
+	cp models/heatmap_cnn/model.onnx src/turbinefit/models/heatmap_cnn.onnx
+	cp models/heatmap_cnn/weights.npz src/turbinefit/models/heatmap_cnn.npz
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

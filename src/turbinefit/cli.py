@@ -23,6 +23,8 @@ Flight folder (input of fit, output of simulate):
   turbine.yaml                initial turbine parameters (metres, radians)
   heatmaps/<t %.6f>.npy       float32 (7, H, W): point_base, point_tower_top, point_hub,
                               point_blade_tip, line_tower, line_nacelle, line_blade
+  images/<t %.6f>.png|.jpg    optional photos; fit detects heat-maps from them when
+                              heatmaps/ is absent (or with --from-images)
   groundtruth.txt, turbine_groundtruth.yaml   optional ground truth
   simulation.yaml             written by simulate (its settings); not read by fit
 """
@@ -94,6 +96,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="std. dev. of additive pixel noise on the heat-maps")
     s.add_argument("--second-turbine", action="store_true",
                    help="add a second turbine in view (false responses)")
+    s.add_argument("--images", action="store_true",
+                   help="also render a photo of every keyframe into images/ (procedural "
+                   "scene from the seed)")
     s.add_argument("--list-presets", action="store_true", help="list presets and exit")
     s.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but a flight)")
@@ -167,11 +172,81 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--no-warmup", dest="warmup", action="store_const", const=False,
                    default=None, help="skip the correspondence warm-up stages (align, match) "
                    "and start with the configured cost")
+    f.add_argument("--from-images", action="store_true", default=None,
+                   help="detect the heat-maps from images/ even if heatmaps/ exists (default: "
+                   "only when heatmaps/ is absent)")
+    f.add_argument("--model", type=Path, default=None,
+                   help="ONNX heat-map model for detection (default: the shipped one)")
     f.add_argument("--no-plots", action="store_true", help="skip the figures")
     f.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    # ---- detect -----------------------------------------------------------------
+    d = sub.add_parser(
+        "detect", help="heat-maps of photos with the CNN (onnxruntime)",
+        description="Run the heat-map CNN on photos (JPEG/PNG, any size). For each photo writes "
+        "OUT_DIR/<stem>.npy, float32 (7, H, W) at the photo's own size (channels point_base, "
+        "point_tower_top, point_hub, point_blade_tip, line_tower, line_nacelle, line_blade; "
+        "values in [0, 1]), and OUT_DIR/<stem>.png, the photo with the heat-maps overlaid "
+        "(base red, tower top orange, hub yellow, tips magenta, tower cyan, nacelle green, "
+        "blades blue). OUT_DIR is written atomically.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    d.add_argument("inputs", metavar="IMAGES_OR_DIRS", type=Path, nargs="+",
+                   help="photos, or folders of photos (not recursive)")
+    d.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
+                   help="output folder")
+    d.add_argument("--model", type=Path, default=None,
+                   help="ONNX model (default: the shipped model)")
+    d.add_argument("--threads", type=_positive_int, default=None,
+                   help="inference threads (default: all cores)")
+    d.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it holds only detect outputs")
+    d.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    # ---- train ------------------------------------------------------------------
+    t = sub.add_parser(
+        "train", help="train the heat-map CNN on rendered photos (needs turbinefit[train])",
+        description="Render (or reuse) a dataset of procedural turbine photos with exact heat-map "
+        "targets, train the compact U-Net-like CNN with PyTorch, evaluate on held-out renders "
+        "after each epoch, checkpoint (re-running the same command resumes), calibrate the "
+        "detection threshold and export MODEL_DIR/model.onnx (use it with --model) and "
+        "weights.npz. With --labels, fine-tunes (from the shipped model unless --init) on "
+        "real photos labelled with COCO keypoints base, tower_top, hub, tip_1, tip_2, tip_3 "
+        "(CVAT / Label Studio export) together with the renders.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    t.add_argument("--out", dest="out_dir", metavar="MODEL_DIR", type=Path, required=True,
+                   help="output folder: checkpoint.pt, history.csv, model.onnx, weights.npz, "
+                   "data/ (required)")
+    t.add_argument("--images", dest="n_images", metavar="N", type=_positive_int, default=20000,
+                   help="rendered training images (with --labels they are trained on together "
+                   "with the photos, so the net does not forget the renders)")
+    t.add_argument("--val-images", metavar="N", type=_whole_nonneg, default=400,
+                   help="rendered held-out images")
+    t.add_argument("--epochs", metavar="E", type=_positive_int, default=10, help="epochs")
+    t.add_argument("--batch", type=_positive_int, default=16, help="batch size")
+    t.add_argument("--lr", type=_float, default=2e-3, help="peak learning rate")
+    t.add_argument("--seed", type=_seed, default=0, help="seed of renders and training")
+    t.add_argument("--threads", type=_positive_int, default=1,
+                   help="PyTorch threads (1 keeps a core for rendering and other work; "
+                   "raise it on an idle machine)")
+    t.add_argument("--workers", type=_positive_int, default=None,
+                   help="rendering processes (default: all cores)")
+    t.add_argument("--data", dest="data_dir", type=Path, default=None,
+                   help="dataset folder to render into / reuse (default: MODEL_DIR/data)")
+    t.add_argument("--labels", type=Path, default=None, help="COCO keypoint JSON of real photos")
+    t.add_argument("--images-dir", type=Path, default=None,
+                   help="folder the COCO file_name entries are relative to")
+    t.add_argument("--init", type=Path, default=None,
+                   help="weights.npz to start from (default with --labels: the shipped model)")
+    t.add_argument("--max-steps", type=_positive_int, default=None,
+                   help="stop after this many steps (smoke tests)")
+    t.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
+
+
+def _whole_nonneg(text: str) -> int:
+    return _whole_number(text, 0, "must be >= 0")
 
 
 def _version() -> str:
@@ -230,7 +305,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     try:
         report = fit_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
                             overwrite=args.overwrite, progress=progress,
-                            config_path=args.config)
+                            config_path=args.config, from_images=args.from_images,
+                            model=args.model, detect_progress=not args.quiet)
     finally:
         if bar is not None:
             bar.close()
@@ -327,9 +403,42 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         raise InputError("OUT_DIR is required", field="simulate")
     cfg = _sim_config(args)
-    out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet)
+    out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet,
+                          images=args.images)
     if not args.quiet:
         print(f"wrote {cfg.n_keyframes} keyframes to {out}")
+    return 0
+
+
+def _cmd_detect(args: argparse.Namespace) -> int:
+    from turbinefit.pipeline import detect_images
+
+    rep = detect_images(args.inputs, args.out_dir, args.model, overwrite=args.overwrite,
+                        progress=not args.quiet, threads=args.threads)
+    if not args.quiet:
+        print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
+              f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
+              f"wrote {rep.out_dir}")
+    return 0
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from turbinefit.errors import InputError
+
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise InputError("training needs PyTorch: pip install 'turbinefit[train]' "
+                         "(or torch==2.13.0 for the CPU build)", field="train") from None
+    from turbinefit.train.trainer import TrainConfig, train
+
+    cfg = TrainConfig(out_dir=args.out_dir, n_images=args.n_images, val_images=args.val_images,
+                      epochs=args.epochs, batch=args.batch, lr=args.lr, seed=args.seed,
+                      threads=args.threads, workers=args.workers, data_dir=args.data_dir,
+                      labels=args.labels, images_dir=args.images_dir, init=args.init,
+                      max_steps=args.max_steps)
+    res = train(cfg, progress=not args.quiet, log=print)
+    print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0
 
 
@@ -344,6 +453,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_fit(args)
         if args.command == "simulate":
             return _cmd_simulate(args)
+        if args.command == "detect":
+            return _cmd_detect(args)
+        if args.command == "train":
+            return _cmd_train(args)
     except TurbinefitError as exc:
         print(f"turbinefit: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -27,10 +27,17 @@ from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
+from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import atomic_output_dir, check_output_dir, read_text, write_text_atomic
 from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
-from turbinefit.io.flight_folder import read_flight
+from turbinefit.io.flight_folder import (
+    IMAGE_DIR,
+    HeatmapSource,
+    has_heatmaps,
+    keyframe_images,
+    read_flight,
+)
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.solver.config import FitConfig
@@ -174,6 +181,9 @@ def fit_folder(
     overwrite: bool = False,
     progress: Callable[[IterationRecord], None] | None = None,
     config_path: str | os.PathLike[str] | None = None,
+    from_images: bool | None = None,
+    model: str | os.PathLike[str] | None = None,
+    detect_progress: bool = False,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -187,6 +197,11 @@ def fit_folder(
     or symbolic link there is refused; an existing non-empty folder is refused unless
     ``overwrite``, and even then unless it holds nothing but the files above (a guard
     against ``--overwrite`` on a wrong path).
+
+    Heat-maps come from ``flight_dir/heatmaps/``, or are detected from the photos in
+    ``flight_dir/images/`` (:func:`image_heatmap_source`, ONNX ``model`` or the shipped
+    one) when ``from_images`` is True, or when it is None and the flight has photos but
+    no ``heatmaps/``. Nothing is written into ``flight_dir``.
     """
     cfg = config or FitConfig()
     flight_dir = Path(flight_dir)
@@ -195,7 +210,11 @@ def fit_folder(
     check_output_dir(out_dir, overwrite, _only_fit_outputs, _OVERWRITE_HINT)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    flight = read_flight(flight_dir)
+    if from_images is None:
+        from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
+    source = (image_heatmap_source(flight_dir, model, progress=detect_progress)
+              if from_images else None)
+    flight = read_flight(flight_dir, heatmaps=source)
     timings["load"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
@@ -215,6 +234,8 @@ def fit_folder(
                          flight.gt_turbine, cfg.geometry)
 
     summary = make_summary(flight_dir, flight, result, before, after, timings)
+    summary["heatmaps"] = (f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+                           if from_images else "heatmaps/")
     t2 = time.perf_counter()
     with atomic_output_dir(out_dir, overwrite=overwrite, may_replace=_only_fit_outputs) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
@@ -305,9 +326,13 @@ def simulate_folder(
     *,
     overwrite: bool = False,
     progress: bool = False,
+    images: bool = False,
 ) -> Path:
     """Simulate a flight (:func:`turbinefit.sim.simulate_flight`) and write it as a flight
     folder with ground truth; the resolved simulation settings go to ``simulation.yaml``.
+    With ``images``, photos of every keyframe rendered from the ground truth
+    (:func:`turbinefit.sim.images.render_flight_images`, scene from the seed) go to
+    ``images/<t>.png``.
 
     The whole folder, ``simulation.yaml`` included, is written atomically. ``out_dir`` is
     checked before simulating: a file or symbolic link is refused, and an existing
@@ -321,9 +346,126 @@ def simulate_folder(
     check_flight_destination(out, overwrite, _OVERWRITE_HINT)
     flight = simulate_flight(cfg, progress=progress)
     settings = {"turbinefit_version": __version__, **_plain(dataclasses.asdict(cfg))}
+    photos = None
+    if images:
+        from turbinefit.sim.images import render_flight_images
+
+        assert flight.gt_world_T_cam is not None and flight.gt_turbine is not None
+        photos = render_flight_images(flight.camera, flight.gt_world_T_cam,
+                                      flight.gt_turbine.to_vector(), cfg.seed, cfg.geometry,
+                                      progress=progress)
     write_flight(flight, out, overwrite=overwrite,
-                 extra_texts={SIMULATION_FILE: yaml.safe_dump(settings, sort_keys=False)})
+                 extra_texts={SIMULATION_FILE: yaml.safe_dump(settings, sort_keys=False)},
+                 images=photos)
     return out
+
+
+# ---- detection ---------------------------------------------------------------------------
+
+#: Heat-maps detected for a fit are at most this wide [px]; a larger camera is resized.
+FIT_DETECT_WIDTH = 320
+
+
+def image_heatmap_source(flight_dir: str | os.PathLike[str],
+                         model: str | os.PathLike[str] | None = None,
+                         width: int = FIT_DETECT_WIDTH, progress: bool = False,
+                         threads: int | None = None) -> HeatmapSource:
+    """A :data:`~turbinefit.io.flight_folder.HeatmapSource` detecting the heat-maps of
+    every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped).
+
+    Photos must be at the size of ``camera.yaml``; heat-maps are made at that size, or at
+    ``width`` px wide (camera resized to match) if the camera is wider.
+    """
+    from tqdm import tqdm
+
+    from turbinefit.detect import HeatmapDetector
+    from turbinefit.heatmaps import HeatmapStack
+    from turbinefit.io.images import read_image
+
+    root = Path(flight_dir)
+
+    def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
+        paths = keyframe_images(root, timestamps)
+        detector = HeatmapDetector(model, threads)
+        cam = camera
+        if camera.width > width:
+            cam = camera.resized(width, max(1, round(camera.height * width / camera.width)))
+        maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
+        for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
+                                   disable=None if progress else True)):
+            img = read_image(p)
+            if img.shape[:2] != (camera.height, camera.width):
+                raise InputError(f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
+                                 f"{camera.width}x{camera.height}", path=p)
+            maps[k] = detector.detect(img, size=(cam.width, cam.height))
+        return cam, HeatmapStack(maps)
+
+    return source
+
+
+#: What ``detect`` writes for each photo: ``<stem>.npy`` heat-maps and ``<stem>.png`` overlay.
+_DETECT_SUFFIXES = (".npy", ".png")
+
+
+def _only_detect_outputs(folder: Path) -> str | None:
+    for entry in folder.iterdir():
+        if entry.suffix not in _DETECT_SUFFIXES or not entry.is_file():
+            return f"{entry.name!r} is not an output of turbinefit detect"
+    return None
+
+
+@dataclass
+class DetectReport:
+    """What :func:`detect_images` did: ``count`` photos in ``seconds`` (detection only, no
+    file I/O: ``detect_seconds``) written to ``out_dir``."""
+
+    out_dir: Path
+    count: int
+    seconds: float
+    detect_seconds: float
+
+
+def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
+                  model: str | os.PathLike[str] | None = None, *, overwrite: bool = False,
+                  progress: bool = False, threads: int | None = None) -> DetectReport:
+    """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
+    photo, ``<stem>.npy`` (float32 (7, H, W) at the photo's size, channels of
+    :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
+    heat-maps overlaid) into ``out_dir``, atomically.
+
+    Everything is checked before any photo is processed: the inputs exist (an empty folder
+    is an error), no two photos share a stem, the output is not an input folder, the model
+    loads; a photo that cannot be decoded stops the job with nothing written.
+    """
+    from tqdm import tqdm
+
+    from turbinefit.detect import HeatmapDetector, overlay, unique_stems
+    from turbinefit.io.images import check_image, encode_png, list_images, read_image
+
+    out = Path(out_dir)
+    paths = list_images([Path(p) for p in inputs])
+    unique_stems(paths)
+    for p in paths:  # headers only: a non-image file fails here, before any work
+        check_image(p)
+    _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
+    check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
+    detector = HeatmapDetector(model, threads)
+    t0 = time.perf_counter()
+    t_det = 0.0
+    with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
+        # disable=None: no bar when stderr is not a terminal
+        for p in tqdm(paths, desc="detecting", unit="img", disable=None if progress else True):
+            img = read_image(p)
+            t1 = time.perf_counter()
+            maps = detector.detect(img)
+            t_det += time.perf_counter() - t1
+            try:
+                with open(tmp / f"{p.stem}.npy", "wb") as f:
+                    np.save(f, maps, allow_pickle=False)
+                (tmp / f"{p.stem}.png").write_bytes(encode_png(overlay(img, maps)))
+            except OSError as e:
+                raise InputError(f"cannot write: {e.strerror or e}", path=out / p.stem) from e
+    return DetectReport(out, len(paths), time.perf_counter() - t0, t_det)
 
 
 def _plain(obj: Any) -> Any:

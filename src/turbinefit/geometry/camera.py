@@ -100,8 +100,12 @@ class PinholeCamera:
 
     def scaled(self, factor: float) -> PinholeCamera:
         """The same camera for an image resized by ``factor`` (pixel centres preserved)."""
-        w = round(self.width * factor)
-        h = round(self.height * factor)
+        return self.resized(round(self.width * factor), round(self.height * factor))
+
+    def resized(self, width: int, height: int) -> PinholeCamera:
+        """The same camera for the image resized to ``width`` x ``height`` [px] (each axis
+        scaled on its own; pixel centres preserved, as image resampling does)."""
+        w, h = int(width), int(height)
         sx, sy = w / self.width, h / self.height
         return PinholeCamera(
             w, h, self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5,

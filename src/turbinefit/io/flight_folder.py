@@ -6,7 +6,8 @@ Layout (names exact)::
         camera.yaml                 intrinsics, ROS camera_info YAML        (required)
         keyframes.txt               TUM, initial world_T_cam per keyframe   (required)
         turbine.yaml                initial turbine parameters              (required)
-        heatmaps/<t>.npy            one per keyframe                        (required)
+        heatmaps/<t>.npy            one per keyframe                (required, or images/)
+        images/<t>.png|.jpg         one photo per keyframe                  (optional)
         odometry.txt                TUM, same timestamps                    (optional)
         groundtruth.txt             TUM, ground-truth world_T_cam           (optional)
         turbine_groundtruth.yaml    ground-truth turbine parameters         (optional)
@@ -22,6 +23,11 @@ Layout (names exact)::
   ``image_width`` of ``camera.yaml``, channels in the order of
   :data:`turbinefit.heatmaps.CHANNEL_NAMES`. Other files in ``heatmaps/`` are ignored.
   Values are not checked when reading (that would read the data).
+* Images: ``images/<timestamp formatted %.6f>.png`` (or ``.jpg`` / ``.jpeg``), the
+  keyframe's photo at the size of ``camera.yaml``. A flight with ``images/`` but no
+  ``heatmaps/`` is read with heat-maps detected from the photos (``turbinefit fit`` does
+  that: :func:`keyframe_images` finds the files, :func:`read_flight` takes the detected
+  stack as ``heatmaps``).
 
 Reading with ``mmap=True`` (default) maps every heat-map file read-only; only the ``.npy``
 headers are read (one small read per file, identical headers parsed once), so opening a
@@ -51,7 +57,7 @@ import io
 import math
 import os
 import stat
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -60,10 +66,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.flight import Flight
+from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
 from turbinefit.io.atomic import StrPath, atomic_output_dir, check_output_dir, write_text_atomic
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
+from turbinefit.io.images import IMAGE_SUFFIXES
 from turbinefit.io.tum import TumTrajectory, format_tum, read_tum_lines
 from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
 from turbinefit.turbine.model import TurbineParams
@@ -73,18 +81,25 @@ KEYFRAMES_FILE = "keyframes.txt"
 ODOMETRY_FILE = "odometry.txt"
 TURBINE_FILE = "turbine.yaml"
 HEATMAP_DIR = "heatmaps"
+IMAGE_DIR = "images"
 GT_POSES_FILE = "groundtruth.txt"
 GT_TURBINE_FILE = "turbine_groundtruth.yaml"
 #: Written by ``turbinefit simulate`` (the simulation settings); never read.
 SIMULATION_FILE = "simulation.yaml"
 #: Every entry a flight folder may contain (what ``write_flight(overwrite=True)`` may replace).
 FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
-                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE, SIMULATION_FILE})
+                            HEATMAP_DIR, IMAGE_DIR, GT_POSES_FILE, GT_TURBINE_FILE,
+                            SIMULATION_FILE})
 #: The entries :func:`write_flight` writes from the Flight itself (not as ``extra_texts``).
 _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
 #: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
 TIMESTAMP_TOLERANCE = 1e-6
+
+#: Makes a flight's heat-maps from its camera and keyframe timestamps (see read_flight);
+#: returns them with the camera of their pixel grid (e.g. the photo's camera resized).
+HeatmapSource = Callable[[PinholeCamera, NDArray[np.float64]],
+                         tuple[PinholeCamera, HeatmapStack]]
 
 _NPY_MAGIC = b"\x93NUMPY"
 _HEATMAP_DTYPE = np.dtype("<f4")
@@ -289,13 +304,47 @@ def _read_matching_tum(path: Path, keyframes: TumTrajectory, keyframes_path: Pat
     return traj.poses
 
 
-def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
+def keyframe_images(folder: StrPath, timestamps: ArrayLike) -> list[Path]:
+    """The photo of every keyframe: ``folder/images/<%.6f timestamp>`` + the first of
+    :data:`IMAGE_SUFFIXES` that exists.
+
+    Raises:
+        InputError: naming the first keyframe without a photo (or a missing folder).
+    """
+    img_dir = Path(folder) / IMAGE_DIR
+    kind = _kind(img_dir)
+    if kind != "dir":
+        raise InputError("image folder not found" if kind is None else "not a directory",
+                         path=img_dir)
+    present = {p.name for p in img_dir.iterdir()}
+    out = []
+    for k, t in enumerate(np.asarray(timestamps, dtype=np.float64).tolist()):
+        stem = f"{t:.6f}"
+        name = next((stem + suf for suf in IMAGE_SUFFIXES if stem + suf in present), None)
+        if name is None:
+            raise InputError(f"no photo for keyframe {k}, timestamp {stem} (expected "
+                             f"{stem}.png or .jpg)", path=img_dir)
+        out.append(img_dir / name)
+    return out
+
+
+def has_heatmaps(folder: StrPath) -> bool:
+    """Whether the flight folder has a ``heatmaps/`` entry."""
+    return _kind(Path(folder) / HEATMAP_DIR) is not None
+
+
+def read_flight(folder: StrPath, mmap: bool = True,
+                heatmaps: HeatmapStack | HeatmapSource | None = None) -> Flight:
     """Read a flight folder (layout in the module docstring).
 
     Args:
         folder: the flight folder.
         mmap: memory-map the heat-maps (default; only headers are read) or load them into
             one (N, 7, H, W) float32 array.
+        heatmaps: None = read ``heatmaps/``; else the heat-maps to use instead (one per
+            keyframe, at the camera's size), or a function ``(camera, timestamps) ->
+            (camera, HeatmapStack)`` called once the rest is read, e.g. detection from
+            ``images/`` at a working resolution; the flight gets the camera it returns.
 
     Raises:
         InputError: naming the file (and line or field) of the first problem found.
@@ -312,10 +361,10 @@ def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
     turbine = read_turbine_yaml(_required(root / TURBINE_FILE))
     hm_dir = root / HEATMAP_DIR
     hm_kind = _kind(hm_dir)
-    if hm_kind is None:
-        raise InputError("required heat-map directory of a flight folder is missing",
-                         path=hm_dir)
-    if hm_kind != "dir":
+    if heatmaps is None and hm_kind is None:
+        raise InputError("required heat-map directory of a flight folder is missing (or "
+                         f"give photos in {IMAGE_DIR}/ to detect them)", path=hm_dir)
+    if heatmaps is None and hm_kind != "dir":
         raise InputError("not a directory (expected the heat-map folder)", path=hm_dir)
 
     odometry = gt_poses = None
@@ -327,13 +376,17 @@ def read_flight(folder: StrPath, mmap: bool = True) -> Flight:
     if _kind(root / GT_TURBINE_FILE) is not None:
         gt_turbine = read_turbine_yaml(root / GT_TURBINE_FILE)
 
-    heatmaps = read_heatmaps(hm_dir, keyframes.timestamps, camera.height, camera.width,
-                             mmap=mmap, keyframes_file=kf_path, keyframe_lines=keyframes.lines)
+    if callable(heatmaps):
+        camera, heatmaps = heatmaps(camera, keyframes.timestamps)
+    elif heatmaps is None:
+        heatmaps = read_heatmaps(hm_dir, keyframes.timestamps, camera.height, camera.width,
+                                 mmap=mmap, keyframes_file=kf_path,
+                                 keyframe_lines=keyframes.lines)
     try:
         return Flight(camera=camera, timestamps=keyframes.timestamps,
                       world_T_cam=keyframes.poses, heatmaps=heatmaps, turbine=turbine,
                       odometry=odometry, gt_world_T_cam=gt_poses, gt_turbine=gt_turbine)
-    except ValueError as e:  # pragma: no cover - everything is checked above
+    except ValueError as e:  # heat-maps given by the caller
         raise InputError(str(e), path=root) from e
 
 
@@ -351,6 +404,12 @@ def _only_flight_entries(folder: Path) -> str | None:
             for sub in entry.iterdir():
                 if sub.suffix != ".npy" or not sub.is_file():
                     return f"'{HEATMAP_DIR}/{sub.name}' is not a heat-map file"
+        if entry.name == IMAGE_DIR:
+            if not entry.is_dir() or entry.is_symlink():
+                return f"{entry.name!r} is not a directory"
+            for sub in entry.iterdir():
+                if sub.suffix.lower() not in IMAGE_SUFFIXES or not sub.is_file():
+                    return f"'{IMAGE_DIR}/{sub.name}' is not a keyframe photo"
     return None
 
 
@@ -365,7 +424,8 @@ def check_flight_destination(folder: StrPath, overwrite: bool = False,
 
 def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  camera_name: str = "turbinefit",
-                 extra_texts: Mapping[str, str] | None = None) -> Path:
+                 extra_texts: Mapping[str, str] | None = None,
+                 images: Iterable[NDArray[np.uint8]] | None = None) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
@@ -385,6 +445,9 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             must be one of :data:`FLIGHT_ENTRIES` that the flight does not provide (i.e.
             ``simulation.yaml``), so that a folder ``write_flight`` wrote can always be
             replaced by it.
+        images: the keyframes' photos, RGB uint8 (H, W, 3) at the camera's size, in
+            keyframe order (e.g. a generator: each is encoded and dropped), written as
+            ``images/<t>.png``.
 
     Returns:
         The folder written.
@@ -438,4 +501,27 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             except OSError as e:
                 raise InputError(f"cannot write: {e.strerror or e}",
                                  path=root / HEATMAP_DIR / heatmap_filename(t)) from e
+        if images is not None:
+            _write_images(tmp / IMAGE_DIR, root / IMAGE_DIR, flight, images)
     return root
+
+
+def _write_images(tmp_dir: Path, final_dir: Path, flight: Flight,
+                  images: Iterable[NDArray[np.uint8]]) -> None:
+    from turbinefit.io.images import encode_png
+
+    tmp_dir.mkdir()
+    want = (flight.camera.height, flight.camera.width, 3)
+    count = 0
+    for t, img in zip(flight.timestamps.tolist(), images, strict=False):
+        name = f"{t:.6f}.png"
+        if img.shape != want or img.dtype != np.uint8:
+            raise InputError(f"photo is {img.dtype} {img.shape}, expected uint8 {want}",
+                             path=final_dir / name)
+        try:
+            (tmp_dir / name).write_bytes(encode_png(img))
+        except OSError as e:
+            raise InputError(f"cannot write: {e.strerror or e}", path=final_dir / name) from e
+        count += 1
+    if count != flight.num_keyframes:
+        raise InputError(f"{count} photos for {flight.num_keyframes} keyframes", path=final_dir)

@@ -438,3 +438,51 @@ def render_flight(
     for k in tqdm(range(n), desc="rendering heat-maps", unit="kf", disable=not progress):
         _render_into(out[k], painter, R[k], t[k], scenes, rngs[k])
     return out
+
+
+def render_keypoint_heatmaps(
+    height: int,
+    width: int,
+    turbines_uv: Sequence[ArrayLike],
+    turbines_labelled: Sequence[ArrayLike],
+    sigma_px: float = 2.0,
+    piece_px: float = 24.0,
+) -> F32Array:
+    """Heat-maps (7, H, W) float32 drawn from labelled 2-D keypoints (e.g. COCO labels).
+
+    Args:
+        height, width: image size [px].
+        turbines_uv: per turbine, (6, 2) pixel positions of the model points in the order
+            of :data:`turbinefit.turbine.model.POINT_NAMES` (pixel convention of the module
+            docstring; positions outside the image are allowed).
+        turbines_labelled: per turbine, (6,) booleans: which points are labelled.
+        sigma_px: blob / ridge standard deviation [px].
+        piece_px: see :class:`RenderConfig`.
+
+    Each labelled point is a blob in its point channel; each model line whose two end
+    points are both labelled is a straight ridge between them (clipped to the image), the
+    same drawing as :func:`render_heatmaps` without lens distortion. A line with an
+    unlabelled end is not drawn (its extent is unknown).
+    """
+    if not (sigma_px > 0 and math.isfinite(sigma_px)):
+        raise ValueError(f"sigma_px must be positive, got {sigma_px}")
+    out = np.zeros((NUM_CHANNELS, int(height), int(width)), dtype=np.float32)
+    lo = np.array([-CUTOFF_SIGMAS * sigma_px] * 2)
+    hi = np.array([width - 1 + CUTOFF_SIGMAS * sigma_px, height - 1 + CUTOFF_SIGMAS * sigma_px])
+    for uv_in, lab_in in zip(turbines_uv, turbines_labelled, strict=True):
+        uv = np.asarray(uv_in, dtype=np.float64).reshape(6, 2)
+        lab = np.asarray(lab_in, dtype=bool).reshape(6) & np.isfinite(uv).all(axis=1)
+        for i in range(6):
+            if lab[i]:
+                _draw_blob(out[_POINT_CH[i]], float(uv[i, 0]), float(uv[i, 1]), 1.0, sigma_px)
+        for a_i, b_i, ch in LINES:
+            if not (lab[a_i] and lab[b_i]):
+                continue
+            pa, pb = uv[a_i], uv[b_i]
+            t = _clip_segment_rect(pa, pb, lo, hi)
+            if t is None:
+                continue
+            d = pb - pa
+            _draw_polyline(out[ch], np.stack([pa + t[0] * d, pa + t[1] * d]), 1.0, sigma_px,
+                           piece_px)
+    return out

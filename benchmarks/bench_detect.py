@@ -1,0 +1,180 @@
+"""Benchmark of the heat-map CNN (the figures of issue #3).
+
+* **Held-out renders** at the model's input size (160 x 120): ``--heldout`` samples of
+  :mod:`turbinefit.sim.dataset` with a seed never used in training, run through the model
+  with onnxruntime; metrics of :mod:`turbinefit.eval.detection` at the model's calibrated
+  threshold (hub / tower-top / base median error, blade-tip recall and precision within
+  5 px, IoU of the line channels, false peaks of point channels whose point is out of
+  frame).
+* **Inference speed** at 320 x 240: :meth:`HeatmapDetector.detect` (resize to the input
+  size, the net, resize of the 7 maps back to 320 x 240) on rendered photos, all cores.
+* **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),
+  fitted once from the ideal heat-maps and once from the heat-maps detected in the photos
+  (``turbinefit fit --from-images``); mean position / orientation / model-point errors and
+  their ratio.
+
+Usage::
+
+    python benchmarks/bench_detect.py [--heldout 500] [--seeds 0 1 2] [--model M.onnx]
+
+Prints the figures and writes ``benchmarks/results/bench_detect.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from turbinefit.detect import HeatmapDetector
+from turbinefit.eval.detection import DetectionStats
+from turbinefit.io.images import read_image
+from turbinefit.sim.dataset import DATA_VERSION, DatasetSpec, build_dataset
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE / "data"
+RESULTS = HERE / "results"
+BIN = Path(sys.executable).parent / "turbinefit"
+HELDOUT_SEED = 777_777
+#: Fit options for detected heat-maps that measured best here (interpolated point cost,
+#: Cauchy loss: the net's peaks carry ~1 px biases that correspondences follow).
+DETECTED_OPTIONS = ["--points", "interp", "--robust", "cauchy"]
+
+
+def heldout_metrics(det: HeatmapDetector, n: int) -> dict[str, float]:
+    data = build_dataset(DATA / f"heldout-v{DATA_VERSION}-n{n}-s{HELDOUT_SEED}", DatasetSpec(n, HELDOUT_SEED))
+    stats = DetectionStats(threshold=det.info.threshold, tip_threshold=det.info.tip_threshold)
+    for i in range(n):
+        pred = det.detect_small(np.asarray(data.images[i]))
+        stats.add(pred, np.asarray(data.targets[i]) / 255.0, np.asarray(data.points[i]),
+                  np.asarray(data.visible[i]))
+    return stats.summary()
+
+
+def simulate(seed: int, n: int) -> Path:
+    out = DATA / f"flight_images_n{n}_s{seed}"
+    if not (out / "keyframes.txt").exists():
+        subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
+                        str(seed), "--images", "--overwrite", "--quiet"], check=True)
+    return out
+
+
+def fit(flight: Path, extra: list[str]) -> dict:
+    with tempfile.TemporaryDirectory(dir=DATA) as tmp:
+        out = Path(tmp) / "fit"
+        t0 = time.perf_counter()
+        subprocess.run([str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", "--quiet",
+                        *extra], check=True)
+        wall = time.perf_counter() - t0
+        s = json.loads((out / "summary.json").read_text())
+    acc = s["accuracy"]["after"]
+    return {"wall_s": round(wall, 3), "position_m": acc["position_error_m"],
+            "orientation_deg": acc["orientation_error_deg"],
+            "model_point_m": acc["model_point_error_m"],
+            "before_position_m": s["accuracy"]["before"]["position_error_m"]}
+
+
+def speed(det: HeatmapDetector, flight: Path, count: int = 100) -> dict[str, float]:
+    photos = sorted((flight / "images").iterdir())[:count]
+    imgs = [read_image(p) for p in photos]
+    for im in imgs[:5]:
+        det.detect(im)
+    t0 = time.perf_counter()
+    for im in imgs:
+        det.detect(im)
+    t_det = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for p in photos:
+        det.detect(read_image(p))
+    t_all = time.perf_counter() - t0
+    return {"images": len(imgs), "size": [int(imgs[0].shape[1]), int(imgs[0].shape[0])],
+            "images_per_s": round(len(imgs) / t_det, 1),
+            "images_per_s_with_png_decode": round(len(imgs) / t_all, 1)}
+
+
+def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
+    """A 4 x 2 sheet of one flight's photos (far to close) with the heat-maps overlaid."""
+    from turbinefit.detect import overlay
+    from turbinefit.io.images import write_png
+
+    photos = sorted((flight / "images").iterdir())
+    picks = [photos[k] for k in np.linspace(0, len(photos) - 1, 12).astype(int)[[0, 1, 2, 4, 5, 7, 9, 11]]]
+    tiles = [overlay(im, det.detect(im)) for im in (read_image(p) for p in picks)]
+    rows = [np.concatenate(tiles[r * 4:(r + 1) * 4], axis=1) for r in range(2)]
+    write_png(path, np.concatenate(rows, axis=0))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--heldout", type=int, default=500)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--keyframes", type=int, default=200)
+    ap.add_argument("--model", type=Path, default=None)
+    args = ap.parse_args()
+    DATA.mkdir(exist_ok=True)
+    RESULTS.mkdir(exist_ok=True)
+    det = HeatmapDetector(args.model)
+    print(f"model {det.path} (thresholds {det.info.threshold:.2f}, tips {det.info.tip_threshold:.2f}, "
+          f"input {det.info.input_width} px)")
+
+    m = heldout_metrics(det, args.heldout)
+    print(f"held-out renders ({args.heldout} at 160x120):")
+    for k in ("hub", "tower_top", "base"):
+        print(f"  {k:10s} median {m[k + '_median_px']:.2f} px, p90 {m[k + '_p90_px']:.2f} px, "
+              f"detected {m[k + '_detected']:.1%}, false peak when out of frame "
+              f"{m[k + '_false_peak']:.1%}")
+    print(f"  tips       recall {m['tips_recall']:.1%}, precision {m['tips_precision']:.1%} (5 px)")
+    print(f"  IoU        tower {m['iou_tower']:.2f}, nacelle {m['iou_nacelle']:.2f}, blade "
+          f"{m['iou_blade']:.2f}")
+
+    flights = [simulate(s, args.keyframes) for s in args.seeds]
+    sp = speed(det, flights[0])
+    print(f"inference at {sp['size'][0]}x{sp['size'][1]}: {sp['images_per_s']} images/s "
+          f"({sp['images_per_s_with_png_decode']} with PNG decoding), {os.cpu_count()} cores")
+
+    example_sheet(det, flights[min(1, len(flights) - 1)], RESULTS / "detect_examples.png")
+    rows = []
+    for seed, flight in zip(args.seeds, flights, strict=True):
+        ideal = fit(flight, [])
+        model = ["--model", str(args.model)] if args.model else []
+        detected = fit(flight, ["--from-images", *model])
+        tuned = fit(flight, ["--from-images", *model, *DETECTED_OPTIONS])
+        rows.append({"seed": seed, "ideal": ideal, "detected": detected, "detected_tuned": tuned})
+        print(f"seed {seed}: initial {ideal['before_position_m']:.2f} m; ideal heat-maps "
+              f"{ideal['position_m']:.3f} m / {ideal['orientation_deg']:.3f} deg / "
+              f"{ideal['model_point_m']:.3f} m; detected {detected['position_m']:.3f} m / "
+              f"{detected['orientation_deg']:.3f} deg / {detected['model_point_m']:.3f} m "
+              f"({detected['wall_s']:.1f} s with detection); with {' '.join(DETECTED_OPTIONS)} "
+              f"{tuned['position_m']:.3f} m / {tuned['orientation_deg']:.3f} deg / "
+              f"{tuned['model_point_m']:.3f} m")
+    mean = {k: {q: statistics.mean(r[k][q] for r in rows)
+                for q in ("position_m", "orientation_deg", "model_point_m")}
+            for k in ("ideal", "detected", "detected_tuned")}
+    ratio = {k: {q: mean[k][q] / mean["ideal"][q] for q in mean["ideal"]}
+             for k in ("detected", "detected_tuned")}
+    for k in mean:
+        print(f"mean {k:15s} " + ", ".join(f"{q} {v:.3f}" for q, v in mean[k].items())
+              + ("" if k == "ideal" else "; ratio to ideal "
+                 + ", ".join(f"{v:.2f}x" for v in ratio[k].values())))
+    RESULTS.mkdir(exist_ok=True)
+    out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+           "model": str(det.path), "threshold": det.info.threshold,
+           "tip_threshold": det.info.tip_threshold,
+           "heldout": {"n": args.heldout, "seed": HELDOUT_SEED, **m}, "speed": sp,
+           "fit": {"keyframes": args.keyframes, "detected_options": DETECTED_OPTIONS,
+                   "rows": rows, "mean": mean, "ratio": ratio}}
+    (RESULTS / "bench_detect.json").write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {RESULTS / 'bench_detect.json'}")
+
+
+if __name__ == "__main__":
+    main()

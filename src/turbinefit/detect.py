@@ -1,0 +1,232 @@
+"""Heat-maps from photos: the CNN's inference with onnxruntime.
+
+:class:`HeatmapDetector` runs an ONNX heat-map model (by default the one shipped in the
+package, :func:`default_model_path`) on RGB photos of any size:
+
+1. the photo is resized (bilinear, antialiased; :func:`turbinefit.io.images.resize_image`)
+   to the model's input width (``input_width`` of the model's metadata, 160 px for the
+   shipped model) with the height following the photo's aspect ratio, then padded by edge
+   replication to a multiple of the model's stride;
+2. the model gives seven heat-maps in [0, 1] (a sigmoid ends the graph), channel order of
+   :data:`turbinefit.heatmaps.CHANNEL_NAMES`;
+3. the padding is cut off and the maps are resized back to the photo's own size
+   (bilinear, pixel centres aligned), float32 (7, H, W).
+
+So a heat-map pixel ``[c, i, j]`` is photo pixel ``u = j, v = i`` whatever the size; blobs
+and ridges are ``sigma_px`` (metadata, 1.5 for the shipped model) wide at the input width,
+i.e. ``sigma_px * W / input_width`` in the photo.
+
+Model files: ONNX with one input ``(batch, 3, height, width)`` float32 RGB in [0, 1] and one
+output ``(batch, 7, height, width)`` float32 in [0, 1], height and width dynamic; turbinefit
+writes its settings into the ONNX metadata (``turbinefit.*`` keys, see :class:`ModelInfo`).
+A file that is not such a model is an :class:`~turbinefit.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.errors import InputError
+from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
+from turbinefit.io.atomic import StrPath
+from turbinefit.io.images import resize_image, resize_maps
+
+F32Array = NDArray[np.float32]
+
+#: File name of the shipped model inside the package's ``models`` folder.
+DEFAULT_MODEL = "heatmap_cnn.onnx"
+#: Oldest and newest ONNX opsets turbinefit's models are exported with / accepted at.
+MIN_OPSET, MAX_OPSET = 13, 21
+
+#: Overlay colour (RGB) of each channel.
+CHANNEL_COLOURS = np.array([
+    (255, 40, 40),    # point_base: red
+    (255, 150, 0),    # point_tower_top: orange
+    (255, 255, 0),    # point_hub: yellow
+    (255, 0, 255),    # point_blade_tip: magenta
+    (0, 230, 255),    # line_tower: cyan
+    (0, 255, 60),     # line_nacelle: green
+    (60, 110, 255),   # line_blade: blue
+], dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """A heat-map model's settings (ONNX metadata ``turbinefit.<field>``).
+
+    Attributes:
+        input_width: width [px] photos are resized to.
+        input_height: height [px] of a 4:3 photo at that width (for reference).
+        stride: the padded input's sides are multiples of it.
+        sigma_px: blob / ridge standard deviation of the training targets [px at the
+            input width].
+        threshold: peak value above which a point channel (base, tower top, hub) counts
+            as a detection (calibrated on held-out renders: false peaks where the point is
+            out of view in at most 5 % of them).
+        tip_threshold: the same for local maxima of the blade-tip channel (calibrated for
+            the best F1 of tip recall and precision within 5 px).
+        opset: ONNX opset of the file.
+        description: how it was trained.
+    """
+
+    input_width: int = 160
+    input_height: int = 120
+    stride: int = 16
+    sigma_px: float = 1.5
+    threshold: float = 0.3
+    tip_threshold: float = 0.3
+    opset: int = 17
+    description: str = ""
+
+    def to_metadata(self) -> dict[str, str]:
+        return {f"turbinefit.{k}": str(v) for k, v in self.__dict__.items()}
+
+    @staticmethod
+    def from_metadata(meta: dict[str, str], path: Path) -> ModelInfo:
+        kw: dict[str, object] = {}
+        for name, typ in (("input_width", int), ("input_height", int), ("stride", int),
+                          ("sigma_px", float), ("threshold", float),
+                          ("tip_threshold", float), ("opset", int),
+                          ("description", str)):
+            key = f"turbinefit.{name}"
+            if key not in meta:
+                continue
+            try:
+                kw[name] = typ(meta[key])
+            except ValueError:
+                raise InputError(f"model metadata {key}={meta[key]!r} is not a valid {typ.__name__}",
+                                 path=path) from None
+        info = ModelInfo(**kw)  # type: ignore[arg-type]
+        if info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0:
+            raise InputError(f"model metadata out of range: {info}", path=path)
+        if not MIN_OPSET <= info.opset <= MAX_OPSET:
+            raise InputError(f"model opset {info.opset} is not supported (need "
+                             f"{MIN_OPSET}..{MAX_OPSET})", path=path)
+        return info
+
+
+def default_model_path() -> Path:
+    """The model shipped inside the package."""
+    return Path(str(resources.files("turbinefit") / "models" / DEFAULT_MODEL))
+
+
+def model_input_size(width: int, height: int, info: ModelInfo) -> tuple[int, int]:
+    """(width, height) a ``width`` x ``height`` photo is resized to for the model."""
+    w = info.input_width
+    h = max(1, round(w * height / width))
+    return w, h
+
+
+class HeatmapDetector:
+    """An ONNX heat-map model ready to run (see the module docstring).
+
+    Args:
+        model: ONNX file; None = the shipped model.
+        threads: onnxruntime intra-op threads; None = all cores.
+
+    Raises:
+        InputError: naming the file if it is missing, not ONNX, of an unsupported opset or
+            of the wrong input/output shape.
+    """
+
+    def __init__(self, model: StrPath | None = None, threads: int | None = None) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(model) if model is not None else default_model_path()
+        if not self.path.is_file():
+            raise InputError("model file not found", path=self.path)
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = int(threads or os.cpu_count() or 1)
+        opts.inter_op_num_threads = 1
+        opts.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(str(self.path), opts,
+                                                providers=["CPUExecutionProvider"])
+        except Exception as e:  # onnxruntime raises its own (untyped) exceptions
+            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise InputError(f"not a usable ONNX model: {msg}", path=self.path) from None
+        meta = dict(self.session.get_modelmeta().custom_metadata_map)
+        self.info = ModelInfo.from_metadata(meta, self.path)
+        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+        if len(inputs) != 1 or len(outputs) != 1:
+            raise InputError(f"model has {len(inputs)} inputs and {len(outputs)} outputs, "
+                             f"expected 1 and 1", path=self.path)
+        ishape, oshape = inputs[0].shape, outputs[0].shape
+        if len(ishape) != 4 or ishape[1] != 3:
+            raise InputError(f"model input has shape {ishape}, expected (batch, 3, height, "
+                             f"width)", path=self.path)
+        if len(oshape) != 4 or oshape[1] != NUM_CHANNELS:
+            raise InputError(f"model output has shape {oshape}, expected (batch, "
+                             f"{NUM_CHANNELS}, height, width)", path=self.path)
+        if any(isinstance(d, int) for d in (*ishape[2:], *oshape[2:])):
+            raise InputError(f"model has a fixed image size {ishape[2:]}; turbinefit needs "
+                             f"dynamic height and width", path=self.path)
+        self._input = inputs[0].name
+
+    def _prepare(self, image: NDArray[np.uint8]) -> tuple[F32Array, tuple[int, int]]:
+        h, w = image.shape[:2]
+        mw, mh = model_input_size(w, h, self.info)
+        small = resize_image(image, mw, mh)
+        s = self.info.stride
+        ph, pw = math.ceil(mh / s) * s, math.ceil(mw / s) * s
+        x = np.pad(small, ((0, ph - mh), (0, pw - mw), (0, 0)), mode="edge")
+        return (x.transpose(2, 0, 1).astype(np.float32) * (1.0 / 255.0)), (mw, mh)
+
+    def detect_small(self, image: NDArray[np.uint8]) -> F32Array:
+        """Heat-maps (7, h, w) at the model's input size of one RGB uint8 photo."""
+        x, (mw, mh) = self._prepare(image)
+        out = self.session.run(None, {self._input: x[None]})[0][0]
+        return np.ascontiguousarray(out[:, :mh, :mw], dtype=np.float32)
+
+    def detect(self, image: NDArray[np.uint8], size: tuple[int, int] | None = None) -> F32Array:
+        """Heat-maps (7, H, W) float32 in [0, 1] of one RGB uint8 photo (H, W, 3).
+
+        ``size`` = (width, height) of the output; default the photo's own size.
+        """
+        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+            raise ValueError(f"expected an RGB uint8 (H, W, 3) image, got {image.dtype} "
+                             f"{image.shape}")
+        h, w = image.shape[:2]
+        ow, oh = size or (w, h)
+        maps = resize_maps(self.detect_small(image), ow, oh)
+        np.clip(maps, 0.0, 1.0, out=maps)
+        return maps
+
+
+def overlay(image: NDArray[np.uint8], maps: F32Array) -> NDArray[np.uint8]:
+    """The photo (H, W, 3), darkened, with heat-maps (7, H, W) blended in their
+    :data:`CHANNEL_COLOURS`: the line channels first (each pixel in the colour of its
+    strongest line channel), then the point channels over them."""
+    if maps.shape[1:] != image.shape[:2]:
+        maps = resize_maps(maps, image.shape[1], image.shape[0])
+    out = image.astype(np.float32) * 0.6
+    for chans in ((4, 5, 6), (0, 1, 2, 3)):
+        sub = maps[list(chans)]
+        alpha = np.clip(np.max(sub, axis=0), 0.0, 1.0)[..., None]
+        colour = CHANNEL_COLOURS[np.asarray(chans)[np.argmax(sub, axis=0)]]
+        out = out * (1.0 - alpha) + colour * alpha
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def legend() -> str:
+    """One line per channel: name and overlay colour."""
+    names = {0: "red", 1: "orange", 2: "yellow", 3: "magenta", 4: "cyan", 5: "green", 6: "blue"}
+    return ", ".join(f"{n}={names[i]}" for i, n in enumerate(CHANNEL_NAMES))
+
+
+def unique_stems(paths: Sequence[Path]) -> None:
+    """Raise InputError if two images would write the same ``<stem>.npy``."""
+    seen: dict[str, Path] = {}
+    for p in paths:
+        if p.stem in seen:
+            raise InputError(f"two images share the name {p.stem!r} ({seen[p.stem]} and {p}); "
+                             f"outputs are named by stem", path=p)
+        seen[p.stem] = p

@@ -1,0 +1,152 @@
+"""How good are heat-maps? Detection metrics of predicted heat-maps against the truth.
+
+All in pixels of the heat-maps' own grid. Inputs per image: predicted heat-maps (7, H, W)
+in [0, 1], the target heat-maps (7, H, W), the projected model points (6, 2) [px] and which
+of them are visible (in front of the camera and inside the image).
+
+* **Points** (base, tower top, hub): the channel's maximum, refined to sub-pixel by a
+  log-parabola through its 4-neighbourhood, is the detection if above ``threshold``.
+  Error = distance to the projected point, over images where the point is visible and
+  detected; ``detected`` = fraction of visible points detected; ``false_peak`` = fraction of
+  images where the point is *not* visible but the channel still peaks above ``threshold``.
+* **Blade tips** (one channel, up to three tips): local maxima above ``tip_threshold``
+  (default ``threshold``) in a ``nms_px`` x ``nms_px`` window (7 px: +-2 sigma of the
+  1.5 px targets, so that one tip's blob, flattened or ridged by the net, gives one
+  detection) are detections; a greedy one-to-one match to
+  visible tips within ``match_px`` gives recall (matched tips / visible tips) and
+  precision (matched detections / detections).
+* **Lines** (tower, nacelle, blades): intersection over union of the regions above 0.5 in
+  prediction and target, pooled over all images (sum of intersections / sum of unions).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+POINT_NAMES3 = ("base", "tower_top", "hub")
+LINE_NAMES3 = ("tower", "nacelle", "blade")
+_EPS = 1e-6
+
+
+def peak(channel: NDArray[np.floating]) -> tuple[float, float, float]:
+    """(u, v, value) of a channel's maximum, sub-pixel (log-parabola) where bracketed."""
+    i, j = np.unravel_index(int(np.argmax(channel)), channel.shape)
+    val = float(channel[i, j])
+    u, v = float(j), float(i)
+    h, w = channel.shape
+    if 0 < j < w - 1:
+        a, b, c = (np.log(max(float(x), _EPS)) for x in channel[i, j - 1:j + 2])
+        den = a - 2 * b + c
+        if den < 0:
+            u += float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+    if 0 < i < h - 1:
+        a, b, c = (np.log(max(float(x), _EPS)) for x in channel[i - 1:i + 2, j])
+        den = a - 2 * b + c
+        if den < 0:
+            v += float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+    return u, v, val
+
+
+def local_maxima(channel: NDArray[np.floating], threshold: float, size: int = 3
+                 ) -> NDArray[np.float64]:
+    """(n, 2) pixel positions (u, v) of ``size`` x ``size`` local maxima above ``threshold``."""
+    mx = ndimage.maximum_filter(channel, size=size, mode="constant", cval=0.0)
+    ii, jj = np.nonzero((channel >= mx) & (channel > threshold))
+    return np.stack([jj, ii], axis=-1).astype(np.float64)
+
+
+@dataclass
+class DetectionStats:
+    """Accumulates metrics over images; :meth:`summary` gives the figures."""
+
+    threshold: float = 0.3
+    match_px: float = 5.0
+    tip_threshold: float | None = None
+    nms_px: int = 7
+    point_errors: list[list[float]] = field(default_factory=lambda: [[], [], []])
+    point_visible: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
+    point_detected: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
+    point_hidden: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
+    point_false: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
+    tips_visible: int = 0
+    tips_matched: int = 0
+    tips_detections: int = 0
+    tips_true_detections: int = 0
+    inter: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    union: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    images: int = 0
+
+    def add(self, pred: NDArray[np.floating], target: NDArray[np.floating],
+            points: NDArray[np.floating], visible: NDArray[np.bool_]) -> None:
+        """Add one image (see the module docstring for the arguments)."""
+        self.images += 1
+        for c in range(3):
+            u, v, val = peak(pred[c])
+            if visible[c]:
+                self.point_visible[c] += 1
+                if val > self.threshold:
+                    self.point_detected[c] += 1
+                    self.point_errors[c].append(float(np.hypot(u - points[c, 0],
+                                                               v - points[c, 1])))
+            else:
+                self.point_hidden[c] += 1
+                self.point_false[c] += int(val > self.threshold)
+        tips = points[3:6][visible[3:6]]
+        det = local_maxima(pred[3], self.threshold if self.tip_threshold is None
+                           else self.tip_threshold, self.nms_px)
+        self.tips_visible += len(tips)
+        self.tips_detections += len(det)
+        if len(tips) and len(det):
+            d = np.hypot(det[:, None, 0] - tips[None, :, 0], det[:, None, 1] - tips[None, :, 1])
+            used_det: set[int] = set()
+            used_tip: set[int] = set()
+            for k in np.argsort(d, axis=None):
+                a, b = (int(x) for x in np.unravel_index(int(k), d.shape))
+                if d[a, b] > self.match_px:
+                    break
+                if a in used_det or b in used_tip:
+                    continue
+                used_det.add(a)
+                used_tip.add(b)
+            self.tips_matched += len(used_tip)
+            self.tips_true_detections += len(used_det)
+        for k, c in enumerate((4, 5, 6)):
+            p, t = pred[c] > 0.5, target[c] > 0.5
+            self.inter[k] += float(np.count_nonzero(p & t))
+            self.union[k] += float(np.count_nonzero(p | t))
+
+    def summary(self) -> dict[str, float]:
+        """Figures: ``<point>_median_px``, ``<point>_detected``, ``<point>_false_peak``,
+        ``tips_recall``, ``tips_precision``, ``iou_<line>`` (NaN where undefined)."""
+        out: dict[str, float] = {"images": float(self.images)}
+        for c, name in enumerate(POINT_NAMES3):
+            e = self.point_errors[c]
+            out[f"{name}_median_px"] = float(np.median(e)) if e else float("nan")
+            out[f"{name}_p90_px"] = float(np.percentile(e, 90)) if e else float("nan")
+            out[f"{name}_detected"] = _ratio(self.point_detected[c], self.point_visible[c])
+            out[f"{name}_false_peak"] = _ratio(self.point_false[c], self.point_hidden[c])
+        out["tips_recall"] = _ratio(self.tips_matched, self.tips_visible)
+        out["tips_precision"] = _ratio(self.tips_true_detections, self.tips_detections)
+        for k, name in enumerate(LINE_NAMES3):
+            out[f"iou_{name}"] = _ratio(self.inter[k], self.union[k])
+        return out
+
+
+def _ratio(a: float, b: float) -> float:
+    return float(a) / float(b) if b > 0 else float("nan")
+
+
+def detection_metrics(preds: Iterable[NDArray[np.floating]], targets: Iterable[NDArray[np.floating]],
+                      points: Iterable[NDArray[np.floating]], visible: Iterable[NDArray[np.bool_]],
+                      threshold: float = 0.3, match_px: float = 5.0,
+                      tip_threshold: float | None = None) -> dict[str, float]:
+    """:meth:`DetectionStats.summary` over images given as parallel iterables."""
+    stats = DetectionStats(threshold=threshold, match_px=match_px, tip_threshold=tip_threshold)
+    for p, t, pt, vis in zip(preds, targets, points, visible, strict=True):
+        stats.add(p, t, pt, vis)
+    return stats.summary()

@@ -1,0 +1,139 @@
+"""Image files: reading photos with clear errors, writing PNGs atomically, resizing.
+
+Images are ``uint8`` RGB arrays (H, W, 3); element ``[i, j]`` is pixel ``u = j, v = i``
+(pixel (0, 0) is the centre of the top-left pixel, as everywhere in turbinefit). Pillow
+decodes and encodes (PNG, JPEG and whatever else it reads); grey, palette, 16-bit and
+alpha images are converted to 8-bit RGB, and EXIF orientation is applied, so a photo is
+seen the way a viewer shows it.
+
+Resizing (:func:`resize_image`, :func:`resize_maps`) uses Pillow's resampling, which
+keeps pixel centres aligned (the convention of
+:meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and low-pass filters when it
+shrinks (an area-weighted triangle filter), so a downsized photo shows no aliasing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, ImageOps, UnidentifiedImageError
+
+from turbinefit.errors import InputError
+from turbinefit.io.atomic import StrPath, write_bytes_atomic
+
+#: File name suffixes taken as images when a folder is listed (lower case).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+# A 30000 x 30000 photo is fine; Pillow's default bomb guard (89 M pixels) warns earlier.
+Image.MAX_IMAGE_PIXELS = 1_000_000_000
+
+U8Image = NDArray[np.uint8]
+
+
+@contextlib.contextmanager
+def _image_errors(p: Path) -> Iterator[None]:
+    """Turn Pillow's and the OS's failures on image file ``p`` into one-line InputErrors."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            yield
+    except FileNotFoundError as e:
+        raise InputError("image file not found", path=p) from e
+    except IsADirectoryError as e:
+        raise InputError("is a directory, not an image file", path=p) from e
+    except UnidentifiedImageError as e:
+        raise InputError("not an image file (Pillow cannot identify it)", path=p) from e
+    except OSError as e:
+        raise InputError(f"cannot read image: {e.strerror or e}", path=p) from e
+    except (ValueError, SyntaxError, Image.DecompressionBombWarning) as e:
+        raise InputError(f"cannot decode image: {e}", path=p) from e
+
+
+def read_image(path: StrPath) -> U8Image:
+    """Read an image file as RGB uint8 (H, W, 3).
+
+    Raises:
+        InputError: naming the file if it is missing, unreadable or not an image Pillow
+            can decode (also a truncated file).
+    """
+    p = Path(path)
+    with _image_errors(p), Image.open(p) as im:
+        im.load()
+        upright: Image.Image = ImageOps.exif_transpose(im) or im
+        rgb = upright.convert("RGB")
+    arr = np.asarray(rgb, dtype=np.uint8)
+    if arr.ndim != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise InputError(f"image has no pixels (shape {arr.shape})", path=p)
+    return np.ascontiguousarray(arr)
+
+
+def check_image(path: StrPath) -> tuple[int, int]:
+    """(width, height) of an image file from its header, without decoding the pixels.
+
+    Raises:
+        InputError: as :func:`read_image`, for a missing file or one that is not an image.
+    """
+    p = Path(path)
+    with _image_errors(p), Image.open(p) as im:
+        return int(im.width), int(im.height)
+
+
+def encode_png(image: U8Image) -> bytes:
+    """PNG bytes of an RGB uint8 (H, W, 3) image."""
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB").save(
+        buf, format="PNG", compress_level=3)
+    return buf.getvalue()
+
+
+def write_png(path: StrPath, image: U8Image, fsync: bool = True) -> Path:
+    """Write an RGB uint8 (H, W, 3) image as PNG, atomically."""
+    return write_bytes_atomic(path, encode_png(image), fsync=fsync)
+
+
+def resize_image(image: U8Image, width: int, height: int) -> U8Image:
+    """An RGB uint8 image resized to ``width`` x ``height`` (bilinear, antialiased)."""
+    if image.shape[1] == width and image.shape[0] == height:
+        return image
+    im = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB")
+    return np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR))
+
+
+def resize_maps(maps: NDArray[np.float32], width: int, height: int) -> NDArray[np.float32]:
+    """Float maps (C, H, W) resized to (C, ``height``, ``width``), bilinear, per channel."""
+    if maps.shape[2] == width and maps.shape[1] == height:
+        return np.ascontiguousarray(maps, dtype=np.float32)
+    out = np.empty((maps.shape[0], int(height), int(width)), dtype=np.float32)
+    for c in range(maps.shape[0]):
+        im = Image.fromarray(np.ascontiguousarray(maps[c], dtype=np.float32), "F")
+        out[c] = np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR))
+    return out
+
+
+def list_images(inputs: list[Path]) -> list[Path]:
+    """Image files named by ``inputs``: files as given, folders listed (not recursively,
+    suffixes :data:`IMAGE_SUFFIXES`, sorted by name).
+
+    Raises:
+        InputError: for a path that does not exist, or a folder with no image files.
+    """
+    out: list[Path] = []
+    for p in inputs:
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir()
+                           if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise InputError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in folder",
+                                 path=p)
+            out.extend(found)
+        elif p.exists():
+            out.append(p)
+        else:
+            raise InputError("no such file or folder", path=p)
+    return out

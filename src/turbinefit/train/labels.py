@@ -1,0 +1,43 @@
+"""Training samples from labelled real photos (COCO keypoints, :mod:`turbinefit.io.coco`).
+
+A photo is scaled (bilinear, antialiased) so that it covers the model's input size
+``width`` x ``height`` and centre-cropped to it (a 4:3 photo is only scaled); the labelled
+keypoints follow the same transform (pixel centres preserved) and the targets are drawn
+from them by :func:`turbinefit.sim.render.render_keypoint_heatmaps`: a blob per labelled
+point, a ridge per model line whose two ends are labelled. Every labelled turbine of a
+photo is a target.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.errors import InputError
+from turbinefit.io.coco import LabelledImage
+from turbinefit.io.images import read_image, resize_image
+from turbinefit.sim.render import render_keypoint_heatmaps
+
+
+def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: float
+                    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """(image (height, width, 3) uint8, targets (7, height, width) uint8 x 255)."""
+    img = read_image(item.path)
+    h0, w0 = img.shape[:2]
+    if (w0, h0) != (item.width, item.height):
+        raise InputError(f"image is {w0}x{h0} but its label entry says {item.width}x"
+                         f"{item.height}", path=item.path)
+    s = max(width / w0, height / h0)
+    sw, sh = max(width, round(w0 * s)), max(height, round(h0 * s))
+    big = resize_image(img, sw, sh)
+    x0, y0 = (sw - width) // 2, (sh - height) // 2
+    crop = big[y0:y0 + height, x0:x0 + width]
+    # pixel centre u maps to (u + 0.5) * (sw / w0) - 0.5 in the resized image
+    fx, fy = sw / w0, sh / h0
+    uvs, labs = [], []
+    for t in item.turbines:
+        uv = np.stack([(t.uv[:, 0] + 0.5) * fx - 0.5 - x0, (t.uv[:, 1] + 0.5) * fy - 0.5 - y0], -1)
+        uvs.append(uv)
+        labs.append(t.visibility > 0)
+    maps = render_keypoint_heatmaps(height, width, uvs, labs, sigma_px)
+    return np.ascontiguousarray(crop), np.rint(maps * 255.0).astype(np.uint8)

@@ -1,0 +1,489 @@
+"""Train the heat-map CNN on rendered photos (and optionally labelled real photos).
+
+:func:`train` renders (or reuses) a dataset (:mod:`turbinefit.sim.dataset`), trains
+:class:`~turbinefit.train.net.HeatmapNet` with AdamW and a one-cycle learning rate,
+evaluates on held-out renders after every epoch, checkpoints after every epoch (atomically;
+an interrupted run resumes from its last checkpoint), calibrates the detection threshold
+and exports ONNX.
+
+Output folder::
+
+    <out>/checkpoint.pt   model, optimiser, schedule, epoch, history (resume state)
+    <out>/history.csv     one row per epoch: losses and held-out metrics
+    <out>/model.onnx      the model for :class:`turbinefit.detect.HeatmapDetector`
+    <out>/weights.npz     the weights as NumPy arrays (PyTorch-free; ``--init`` reads it)
+    <out>/data/...        rendered datasets (unless ``--data`` points elsewhere)
+
+Loss: binary cross-entropy between the sigmoid of the logits and the soft Gaussian targets,
+each pixel weighted ``1 + pos_weight * target``; the per-pixel optimum stays at
+prediction = target (the weight depends on the target only), but the few pixels on the
+turbine count as much as the many on the background.
+
+Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
+brightness / contrast / colour jitter; the renderer provides the rest of the variety.
+
+Threads: one training process per machine is the best use of a small machine; a second
+busy process on the cores PyTorch uses can slow it by an order of magnitude (measured
+here: two threads with another process on the second core fell from 122 to 7 samples/s,
+one thread held 56), so ``threads`` defaults to 1 while the data are rendered by the other
+cores and may be raised on an otherwise idle machine.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+from torch.nn import functional as F
+from tqdm import tqdm
+
+from turbinefit.detect import ModelInfo
+from turbinefit.errors import InputError
+from turbinefit.eval.detection import DetectionStats
+from turbinefit.io.atomic import write_bytes_atomic, write_text_atomic
+from turbinefit.sim.dataset import (
+    MODEL_HEIGHT,
+    MODEL_WIDTH,
+    TARGET_SIGMA_PX,
+    Dataset,
+    DatasetSpec,
+    build_dataset,
+)
+from turbinefit.train.net import STRIDE, HeatmapNet, num_parameters
+
+#: Seed offset of the held-out renders (independent of the training renders).
+VAL_SEED_OFFSET = 1_000_003
+OPSET = 17
+
+
+@dataclass
+class TrainConfig:
+    """Settings of :func:`train` (all but ``out_dir`` have defaults).
+
+    Attributes:
+        out_dir: output folder (see the module docstring).
+        n_images: rendered training images.
+        val_images: rendered held-out images.
+        epochs: passes over the training set.
+        batch: images per step.
+        lr: peak learning rate (one-cycle).
+        weight_decay: AdamW weight decay.
+        pos_weight: extra weight of pixels on the turbine (see the module docstring).
+        seed: seed of the renders and of the training order.
+        threads: PyTorch threads.
+        workers: processes rendering the dataset (default: all cores).
+        data_dir: where datasets are rendered / reused (default ``out_dir/data``).
+        labels: COCO keypoint file of real labelled photos to train on as well.
+        images_dir: folder the COCO file's ``file_name`` are relative to.
+        init: ``weights.npz`` to start from (fine-tuning); default for ``labels`` is the
+            shipped model's weights.
+        max_steps: stop after this many steps in all (tests); None = no limit.
+    """
+
+    out_dir: Path
+    n_images: int = 20000
+    val_images: int = 400
+    epochs: int = 10
+    batch: int = 16
+    lr: float = 2e-3
+    weight_decay: float = 1e-4
+    pos_weight: float = 10.0
+    seed: int = 0
+    threads: int = 1
+    workers: int | None = None
+    data_dir: Path | None = None
+    labels: Path | None = None
+    images_dir: Path | None = None
+    init: Path | None = None
+    max_steps: int | None = None
+    #: settings that must match when a run is resumed
+    _RESUME_KEYS: tuple[str, ...] = field(default=("n_images", "val_images", "epochs", "batch",
+                                                   "lr", "seed", "labels"), repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("n_images", "epochs", "batch", "threads"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be at least 1, got {getattr(self, name)}", field=name)
+        if self.val_images < 0:
+            raise InputError(f"must be >= 0, got {self.val_images}", field="val_images")
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise InputError(f"must be positive, got {self.lr}", field="lr")
+        if (self.labels is None) != (self.images_dir is None):
+            raise InputError("--labels and --images-dir go together", field="labels")
+
+
+class _Arrays(torch.utils.data.Dataset[tuple[torch.Tensor, torch.Tensor]]):
+    """Images + uint8 targets as tensors (optionally flipped at random)."""
+
+    def __init__(self, images: NDArray[np.uint8], targets: NDArray[np.uint8],
+                 augment: bool) -> None:
+        self.images, self.targets, self.augment = images, targets, augment
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
+        img = np.array(self.images[i])  # a copy: memory maps are read-only
+        tgt = np.array(self.targets[i])
+        if self.augment and torch.rand(()) < 0.5:
+            img, tgt = img[:, ::-1], tgt[:, :, ::-1]
+        x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
+        y = torch.from_numpy(np.ascontiguousarray(tgt)).float() / 255.0
+        return x, y
+
+
+def _jitter(x: torch.Tensor) -> torch.Tensor:
+    """Per-image brightness, contrast and colour jitter of a batch (B, 3, H, W) in [0, 1]."""
+    b = x.shape[0]
+    gain = 1.0 + 0.25 * (torch.rand(b, 1, 1, 1) - 0.5)
+    colour = 1.0 + 0.1 * (torch.rand(b, 3, 1, 1) - 0.5)
+    mean = x.mean(dim=(1, 2, 3), keepdim=True)
+    contrast = 1.0 + 0.3 * (torch.rand(b, 1, 1, 1) - 0.5)
+    return ((x - mean) * contrast + mean).mul(gain * colour).clamp(0.0, 1.0)
+
+
+def _pad(x: torch.Tensor) -> tuple[torch.Tensor, int, int]:
+    h, w = x.shape[-2:]
+    ph, pw = (-h) % STRIDE, (-w) % STRIDE
+    if ph or pw:
+        x = F.pad(x, (0, pw, 0, ph), mode="replicate")
+    return x, h, w
+
+
+def forward(net: torch.nn.Module, x: torch.Tensor) -> torch.Tensor:
+    """Logits (B, 7, H, W) of images (B, 3, H, W) of any size (padded to the stride)."""
+    xp, h, w = _pad(x)
+    return net(xp.contiguous(memory_format=torch.channels_last))[..., :h, :w]
+
+
+def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float) -> torch.Tensor:
+    """Target-weighted binary cross-entropy (see the module docstring)."""
+    w = 1.0 + pos_weight * target
+    return (F.binary_cross_entropy_with_logits(logits, target, reduction="none") * w).mean()
+
+
+def _load_npz(net: HeatmapNet, path: Path) -> None:
+    try:
+        with np.load(path) as z:
+            state = {k: torch.from_numpy(z[k]) for k in z.files}
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read weights: {e}", path=path) from e
+    try:
+        net.load_state_dict(state)
+    except RuntimeError as e:
+        raise InputError(f"weights do not fit the net: {str(e).splitlines()[0]}", path=path) from e
+
+
+def save_npz(net: torch.nn.Module, path: Path) -> None:
+    buf = io.BytesIO()
+    np.savez(buf, **{k: v.detach().cpu().numpy() for k, v in net.state_dict().items()})
+    write_bytes_atomic(path, buf.getvalue())
+
+
+class _Sigmoid(torch.nn.Module):
+    def __init__(self, net: torch.nn.Module) -> None:
+        super().__init__()
+        self.net = net
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.sigmoid(self.net(x))
+
+
+def export_onnx(net: HeatmapNet, path: Path, info: ModelInfo) -> Path:
+    """Export ``net`` (+ sigmoid) as ONNX with dynamic batch and image size and
+    ``info`` in its metadata, atomically.
+
+    Uses PyTorch's TorchScript exporter (``dynamo=False``): it needs only the ``onnx``
+    package (the torch.export-based one also needs onnxscript) and writes a plain graph of
+    the requested opset that onnxruntime folds (batch norm into the convolutions).
+    """
+    import warnings
+
+    import onnx
+
+    was_training = net.training
+    net.eval()
+    buf = io.BytesIO()
+    dummy = torch.rand(1, 3, info.input_height + (-info.input_height) % STRIDE, info.input_width)
+    dyn = {0: "batch", 2: "height", 3: "width"}
+    with torch.no_grad(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.onnx.export(_Sigmoid(net), (dummy,), buf,  # type: ignore[arg-type]
+                          dynamo=False, opset_version=info.opset,
+                          input_names=["image"], output_names=["heatmaps"],
+                          dynamic_axes={"image": dyn, "heatmaps": dyn})
+    model = onnx.load_from_string(buf.getvalue())
+    for k, v in info.to_metadata().items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = k, v
+    net.train(was_training)
+    return write_bytes_atomic(path, model.SerializeToString())
+
+
+@dataclass
+class EpochRecord:
+    epoch: int
+    train_loss: float
+    val_loss: float
+    samples_per_s: float
+    metrics: dict[str, float]
+
+
+def evaluate(net: torch.nn.Module, images: NDArray[np.uint8], targets: NDArray[np.uint8],
+             points: NDArray[np.floating], visible: NDArray[np.bool_], pos_weight: float,
+             thresholds: tuple[float, ...] = (0.3,), batch: int = 32,
+             tip_threshold: float | None = None
+             ) -> tuple[float, dict[float, dict[str, float]]]:
+    """Held-out loss and :class:`DetectionStats` summaries, one per threshold (tips at
+    the same threshold unless ``tip_threshold``)."""
+    net.eval()
+    stats = {t: DetectionStats(threshold=t, tip_threshold=tip_threshold) for t in thresholds}
+    total, n = 0.0, 0
+    with torch.no_grad():
+        for k in range(0, len(images), batch):
+            x = torch.from_numpy(np.array(images[k:k + batch]).transpose(0, 3, 1, 2).copy())
+            y = torch.from_numpy(np.array(targets[k:k + batch])).float() / 255.0
+            logits = forward(net, x.float() / 255.0)
+            total += float(heatmap_loss(logits, y, pos_weight)) * len(x)
+            n += len(x)
+            pred = torch.sigmoid(logits).numpy()
+            tgt = y.numpy()
+            for j in range(len(x)):
+                for s in stats.values():
+                    s.add(pred[j], tgt[j], points[k + j], visible[k + j])
+    net.train()
+    return total / max(n, 1), {t: s.summary() for t, s in stats.items()}
+
+
+def calibrate_thresholds(summaries: dict[float, dict[str, float]], max_false: float = 0.05
+                         ) -> tuple[float, float]:
+    """(point threshold, tip threshold) from summaries at a grid of thresholds.
+
+    Points: the lowest threshold at which no point channel peaks above it in more than
+    ``max_false`` of the images where its point is out of view. Tips: the threshold of the
+    best F1 of recall and precision.
+    """
+    point = max(summaries)
+    for t in sorted(summaries):
+        s = summaries[t]
+        worst = max((s[f"{p}_false_peak"] for p in ("base", "tower_top", "hub")
+                     if not math.isnan(s[f"{p}_false_peak"])), default=0.0)
+        if worst <= max_false:
+            point = t
+            break
+
+    def f1(t: float) -> float:
+        r, p = summaries[t]["tips_recall"], summaries[t]["tips_precision"]
+        return 0.0 if math.isnan(r) or math.isnan(p) or r + p == 0 else 2 * r * p / (r + p)
+
+    tip = max(sorted(summaries), key=f1)
+    return point, tip
+
+
+def _save_checkpoint(path: Path, state: dict[str, Any]) -> None:
+    buf = io.BytesIO()
+    torch.save(state, buf)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def _write_history(path: Path, history: list[EpochRecord]) -> None:
+    keys = sorted({k for r in history for k in r.metrics})
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["epoch", "train_loss", "val_loss", "samples_per_s", *keys])
+    for r in history:
+        w.writerow([r.epoch, f"{r.train_loss:.5f}", f"{r.val_loss:.5f}", f"{r.samples_per_s:.1f}",
+                    *(f"{r.metrics.get(k, float('nan')):.4f}" for k in keys)])
+    write_text_atomic(path, out.getvalue())
+
+
+def _calibrated_metrics(net: torch.nn.Module, val: Dataset, pos_weight: float,
+                        grid: tuple[float, ...]
+                        ) -> tuple[float, dict[str, float], tuple[float, float]]:
+    """Held-out loss, metrics at the calibrated thresholds, and those thresholds."""
+    loss, summaries = evaluate(net, val.images, val.targets, val.points, val.visible,
+                               pos_weight, grid)
+    point, tip = calibrate_thresholds(summaries)
+    tips = summaries[tip]
+    metrics = dict(summaries[point], tips_recall=tips["tips_recall"],
+                   tips_precision=tips["tips_precision"], threshold=point, tip_threshold=tip)
+    return loss, metrics, (point, tip)
+
+
+def format_metrics(m: dict[str, float]) -> str:
+    return (f"hub {m['hub_median_px']:.2f}px top {m['tower_top_median_px']:.2f}px "
+            f"base {m['base_median_px']:.2f}px | tips R {m['tips_recall']:.2f} "
+            f"P {m['tips_precision']:.2f} | IoU tower {m['iou_tower']:.2f} "
+            f"nacelle {m['iou_nacelle']:.2f} blade {m['iou_blade']:.2f} | thresholds "
+            f"{m.get('threshold', float('nan')):.2f} / tips {m.get('tip_threshold', float('nan')):.2f}")
+
+
+@dataclass
+class TrainResult:
+    out_dir: Path
+    model: Path
+    history: list[EpochRecord]
+    threshold: float
+    parameters: int
+
+
+def _config_dict(cfg: TrainConfig) -> dict[str, Any]:
+    d = asdict(cfg)
+    d.pop("_RESUME_KEYS", None)
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
+
+
+def _labelled_arrays(cfg: TrainConfig) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    from turbinefit.io.coco import read_coco_keypoints
+    from turbinefit.train.labels import labelled_sample
+
+    assert cfg.labels is not None and cfg.images_dir is not None
+    labelled = read_coco_keypoints(cfg.labels, cfg.images_dir)
+    if not labelled:
+        raise InputError("no images in the label file", path=cfg.labels)
+    imgs, tgts = zip(*(labelled_sample(li, MODEL_WIDTH, MODEL_HEIGHT, TARGET_SIGMA_PX)
+                       for li in labelled), strict=True)
+    return np.stack(imgs), np.stack(tgts)
+
+
+def train(cfg: TrainConfig, progress: bool = True,
+          log: Callable[[str], None] = print) -> TrainResult:
+    """Train (or resume training) as ``cfg`` says; see the module docstring."""
+    out = Path(cfg.out_dir)
+    ckpt_path = out / "checkpoint.pt"
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+
+    # Everything that can be wrong with the inputs is checked before anything is written.
+    net = HeatmapNet().to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+    labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
+    if cfg.labels is not None:
+        labelled = _labelled_arrays(cfg)
+        log(f"{len(labelled[0])} labelled photos from {cfg.labels}")
+    init = cfg.init
+    if init is None and cfg.labels is not None:
+        from turbinefit.detect import default_model_path
+        init = default_model_path().with_suffix(".npz")
+    if init is not None:
+        _load_npz(net, Path(init))
+    resume: dict[str, Any] | None = None
+    if ckpt_path.exists():
+        try:
+            resume = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        except Exception as e:
+            raise InputError(f"cannot read checkpoint: {e}", path=ckpt_path) from None
+        assert resume is not None
+        old = resume["config"]
+        for k in cfg._RESUME_KEYS:
+            if str(old.get(k)) != str(_config_dict(cfg).get(k)):
+                raise InputError(f"checkpoint was trained with {k}={old.get(k)}, not "
+                                 f"{_config_dict(cfg).get(k)}; use another --out to start anew",
+                                 path=ckpt_path)
+
+    out.mkdir(parents=True, exist_ok=True)
+    data_dir = cfg.data_dir or (out / "data")
+    rendered = build_dataset(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}",
+                             DatasetSpec(cfg.n_images, cfg.seed), cfg.workers, progress)
+    val: Dataset | None = None
+    if cfg.val_images:
+        val = build_dataset(data_dir / f"val-n{cfg.val_images}-s{cfg.seed}",
+                            DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET),
+                            cfg.workers, progress)
+    parts: list[_Arrays] = [_Arrays(rendered.images, rendered.targets, augment=True)]
+    if labelled is not None:
+        parts.append(_Arrays(labelled[0], labelled[1], augment=True))
+    train_set: torch.utils.data.ConcatDataset[tuple[torch.Tensor, torch.Tensor]] = (
+        torch.utils.data.ConcatDataset(parts))
+
+    steps_per_epoch = max(1, len(train_set) // cfg.batch)
+    total_steps = steps_per_epoch * cfg.epochs
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=total_steps,
+                                                pct_start=0.1 if init is None else 0.02)
+    history: list[EpochRecord] = []
+    start_epoch = 0
+    if resume is not None:
+        net.load_state_dict(resume["model"])
+        opt.load_state_dict(resume["optimizer"])
+        sched.load_state_dict(resume["scheduler"])
+        history = [EpochRecord(**r) for r in resume["history"]]
+        start_epoch = int(resume["epoch"])
+        torch.set_rng_state(resume["torch_rng"])
+        log(f"resuming from {ckpt_path} after epoch {start_epoch}")
+    log(f"net: {num_parameters(net):,} parameters; {len(train_set)} training images, "
+        f"{len(val) if val else 0} held-out; {cfg.epochs} epochs of {steps_per_epoch} steps")
+
+    steps_done = start_epoch * steps_per_epoch
+    grid = tuple(np.round(np.arange(0.1, 0.95, 0.05), 2).tolist())
+    for epoch in range(start_epoch, cfg.epochs):
+        if cfg.max_steps is not None and steps_done >= cfg.max_steps:
+            break
+        g = torch.Generator().manual_seed(cfg.seed * 1000 + epoch)
+        loader = torch.utils.data.DataLoader(train_set, batch_size=cfg.batch, shuffle=True,
+                                             drop_last=True, generator=g, num_workers=0)
+        net.train()
+        t0 = time.perf_counter()
+        seen, loss_sum = 0, 0.0
+        bar = tqdm(loader, total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}",
+                   unit="step", disable=not progress, leave=False)
+        for x, y in bar:
+            logits = forward(net, _jitter(x))
+            loss = heatmap_loss(logits, y, cfg.pos_weight)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            sched.step()
+            seen += len(x)
+            loss_sum += float(loss.detach()) * len(x)
+            steps_done += 1
+            bar.set_postfix(loss=f"{loss_sum / seen:.4f}",
+                            img_s=f"{seen / (time.perf_counter() - t0):.0f}")
+            if cfg.max_steps is not None and steps_done >= cfg.max_steps:
+                break
+        bar.close()
+        rate = seen / max(time.perf_counter() - t0, 1e-9)
+        metrics: dict[str, float] = {}
+        val_loss = float("nan")
+        if val is not None:
+            val_loss, metrics, _ = _calibrated_metrics(net, val, cfg.pos_weight, grid)
+        rec = EpochRecord(epoch + 1, loss_sum / max(seen, 1), val_loss, rate, metrics)
+        history.append(rec)
+        log(f"epoch {epoch + 1}/{cfg.epochs}: loss {rec.train_loss:.4f} held-out "
+            f"{val_loss:.4f} ({rate:.0f} img/s)"
+            + (f" | {format_metrics(metrics)}" if metrics else ""))
+        _save_checkpoint(ckpt_path, {
+            "model": net.state_dict(), "optimizer": opt.state_dict(),
+            "scheduler": sched.state_dict(), "epoch": epoch + 1,
+            "history": [asdict(r) for r in history], "config": _config_dict(cfg),
+            "torch_rng": torch.get_rng_state()})
+        _write_history(out / "history.csv", history)
+
+    # Thresholds of the final weights (again if a finished run is run again: re-export).
+    threshold = tip_threshold = 0.3
+    if val is not None:
+        _, final, (threshold, tip_threshold) = _calibrated_metrics(net, val, cfg.pos_weight, grid)
+        log(f"held-out, final: {format_metrics(final)}")
+    desc = (f"HeatmapNet {num_parameters(net)} params; {cfg.n_images} renders seed {cfg.seed}"
+            f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
+            f"{' from ' + Path(init).name if init is not None else ''}")
+    info = ModelInfo(input_width=MODEL_WIDTH, input_height=MODEL_HEIGHT, stride=STRIDE,
+                     sigma_px=TARGET_SIGMA_PX, threshold=threshold,
+                     tip_threshold=tip_threshold, opset=OPSET,
+                     description=desc)
+    model_path = export_onnx(net, out / "model.onnx", info)
+    save_npz(net, out / "weights.npz")
+    return TrainResult(out, model_path, history, threshold, num_parameters(net))
+
+
+def threads_default() -> int:
+    return 1 if (os.cpu_count() or 1) <= 2 else max(1, (os.cpu_count() or 2) // 2)

@@ -1,0 +1,79 @@
+"""Rendered training data: determinism, targets on the projected geometry, resume."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from turbinefit.errors import InputError
+from turbinefit.eval.detection import peak
+from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample
+from turbinefit.sim.render import render_keypoint_heatmaps
+
+
+def test_samples_are_deterministic_and_independent_of_size() -> None:
+    a = render_sample(DatasetSpec(5, seed=3), 2)
+    b = render_sample(DatasetSpec(50, seed=3), 2)
+    np.testing.assert_array_equal(a.image, b.image)
+    np.testing.assert_array_equal(a.target, b.target)
+    c = render_sample(DatasetSpec(5, seed=4), 2)
+    assert not np.array_equal(a.image, c.image)
+
+
+def test_targets_peak_on_the_projected_points() -> None:
+    spec = DatasetSpec(1, seed=11)
+    checked = 0
+    for i in range(10):
+        s = render_sample(spec, i)
+        assert s.image.shape == (120, 160, 3) and s.image.dtype == np.uint8
+        assert s.target.shape == (7, 120, 160) and np.isfinite(s.target).all()
+        for c in (0, 1, 2):
+            if s.visible[c] and 2 < s.points[c, 0] < 157 and 2 < s.points[c, 1] < 117:
+                u, v, val = peak(s.target[c])
+                assert val > 0.9
+                assert np.hypot(u - s.points[c, 0], v - s.points[c, 1]) < 0.2
+                checked += 1
+            elif not s.visible[c]:
+                # a point out of view leaves at most a blob's tail at the border
+                assert s.target[c].max() < 0.99 or c == 0
+    assert checked >= 5
+
+
+def test_keypoint_targets_match_the_3d_rendering() -> None:
+    s = render_sample(DatasetSpec(1, seed=0), 0)
+    vis = s.visible
+    maps = render_keypoint_heatmaps(120, 160, [s.points], [vis], sigma_px=1.5)
+    for c in range(3):
+        if vis[c]:
+            np.testing.assert_allclose(maps[c], s.target[c], atol=1e-5)
+    if vis[0] and vis[1]:
+        np.testing.assert_allclose(maps[4], s.target[4], atol=1e-4)
+    # nothing labelled: empty maps; a line needs both ends
+    assert not render_keypoint_heatmaps(10, 10, [np.zeros((6, 2))], [np.zeros(6, bool)]).any()
+    one = np.zeros(6, bool)
+    one[0] = True
+    m = render_keypoint_heatmaps(20, 20, [np.full((6, 2), 10.0)], [one])
+    assert m[0].max() == pytest.approx(1.0) and not m[4].any()
+
+
+def test_build_resumes_and_refuses_another_spec(tmp_path: Path) -> None:
+    spec = DatasetSpec(4, seed=1)
+    d = build_dataset(tmp_path / "d", spec, workers=1, progress=False)
+    assert d.complete
+    images = np.array(d.images)
+    # an interrupted build: two samples not done (and zeroed); the rebuild redoes only them
+    done = np.load(tmp_path / "d" / "done.npy", mmap_mode="r+")
+    done[[1, 3]] = False
+    done.flush()
+    del done
+    im = np.load(tmp_path / "d" / "images.npy", mmap_mode="r+")
+    im[[1, 3]] = 0
+    im.flush()
+    del im
+    d2 = build_dataset(tmp_path / "d", spec, workers=1, progress=False)
+    assert d2.complete
+    np.testing.assert_array_equal(np.array(d2.images), images)
+    with pytest.raises(InputError, match="another spec"):
+        build_dataset(tmp_path / "d", DatasetSpec(5, seed=1), workers=1, progress=False)

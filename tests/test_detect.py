@@ -1,0 +1,199 @@
+"""Inference (onnxruntime): the shipped model on rendered photos, the detect command, the
+fit from photos, and bad input (photos, models, folders)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from turbinefit.cli import main
+from turbinefit.detect import HeatmapDetector, default_model_path, model_input_size
+from turbinefit.eval.detection import DetectionStats, peak
+from turbinefit.io.images import read_image, write_png
+from turbinefit.sim.dataset import DatasetSpec, render_sample
+
+onnx = pytest.importorskip("onnx")
+
+
+@pytest.fixture(scope="module")
+def detector() -> HeatmapDetector:
+    return HeatmapDetector(threads=1)
+
+
+@pytest.fixture(scope="module")
+def samples() -> list:
+    """Held-out renders (a seed never used for training) with the hub in view."""
+    spec = DatasetSpec(1, seed=987_654)
+    out = []
+    i = 0
+    while len(out) < 6:
+        s = render_sample(spec, i)
+        if s.visible[2] and s.visible[1]:
+            out.append(s)
+        i += 1
+    return out
+
+
+def test_shipped_model_is_in_the_package() -> None:
+    p = default_model_path()
+    assert p.is_file() and p.stat().st_size < 8e6
+    assert p.with_suffix(".npz").is_file()
+
+
+def test_shipped_model_finds_the_hub(detector: HeatmapDetector, samples: list) -> None:
+    errs = []
+    for s in samples:
+        maps = detector.detect(s.image)
+        assert maps.shape == (7, 120, 160) and maps.dtype == np.float32
+        assert np.isfinite(maps).all() and maps.min() >= 0 and maps.max() <= 1
+        u, v, _ = peak(maps[2])
+        errs.append(np.hypot(u - s.points[2, 0], v - s.points[2, 1]))
+    assert np.median(errs) < 3.0, errs
+
+
+def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: list) -> None:
+    """A 2x photo gives 2x heat-maps whose hub peak lands at 2x the position."""
+    s = samples[0]
+    big = np.repeat(np.repeat(s.image, 2, axis=0), 2, axis=1)
+    small = detector.detect(s.image)
+    maps = detector.detect(big)
+    assert maps.shape == (7, 240, 320)
+    u1, v1, _ = peak(small[2])
+    u2, v2, _ = peak(maps[2])
+    assert abs((u2 + 0.5) / 2 - 0.5 - u1) < 1.0 and abs((v2 + 0.5) / 2 - 0.5 - v1) < 1.0
+    assert model_input_size(4000, 3000, detector.info) == (160, 120)
+    assert detector.detect(np.zeros((37, 301, 3), np.uint8)).shape == (7, 37, 301)
+
+
+def test_detection_metrics_of_perfect_maps(samples: list) -> None:
+    st = DetectionStats(threshold=0.5)
+    for s in samples:
+        st.add(s.target, s.target, s.points, s.visible)
+    m = st.summary()
+    assert m["hub_median_px"] < 0.3 and m["hub_detected"] == 1.0
+    assert m["iou_tower"] == pytest.approx(1.0)
+    assert m["tips_precision"] == pytest.approx(1.0) or np.isnan(m["tips_precision"])
+
+
+def test_detect_cli(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture[str]) -> None:
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for k, s in enumerate(samples[:3]):
+        write_png(photos / f"img{k}.png", s.image)
+    from PIL import Image
+
+    Image.fromarray(samples[3].image).save(photos / "img3.jpg", quality=90)
+    out = tmp_path / "det"
+    assert main(["detect", str(photos), "--out", str(out), "--quiet", "--threads", "1"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted([f"img{k}.{e}" for k in range(4) for e in ("npy", "png")])
+    maps = np.load(out / "img0.npy")
+    assert maps.shape == (7, 120, 160) and maps.dtype == np.float32
+    assert read_image(out / "img0.png").shape == (120, 160, 3)
+    # again without --overwrite: refused; with it: replaced
+    assert main(["detect", str(photos), "--out", str(out), "--quiet"]) == 2
+    assert main(["detect", str(photos / "img0.png"), "--out", str(out), "--quiet",
+                 "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["img0.npy", "img0.png"]
+
+
+def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:
+    err = capsys.readouterr().err
+    assert err.startswith("turbinefit: error: "), err
+    assert len(err.strip().splitlines()) == 1, err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def _tiny_model(path: Path, out_channels: int = 7, opset: int = 17, meta_opset: str | None = None,
+                fixed: bool = False) -> Path:
+    from onnx import TensorProto, helper, numpy_helper
+
+    w = numpy_helper.from_array(np.zeros((out_channels, 3, 1, 1), np.float32), "w")
+    dims = [1, 3, 128, 160] if fixed else ["b", 3, "h", "w"]
+    odims = [1, out_channels, 128, 160] if fixed else ["b", out_channels, "h", "w"]
+    graph = helper.make_graph(
+        [helper.make_node("Conv", ["image", "w"], ["c"]), helper.make_node("Sigmoid", ["c"], ["y"])],
+        "g", [helper.make_tensor_value_info("image", TensorProto.FLOAT, dims)],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, odims)], [w])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)])
+    model.ir_version = 8
+    if meta_opset is not None:
+        e = model.metadata_props.add()
+        e.key, e.value = "turbinefit.opset", meta_opset
+    path.write_bytes(model.SerializeToString())
+    return path
+
+
+def test_detect_bad_input(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / "good.png"
+    write_png(good, samples[0].image)
+    out = tmp_path / "out"
+    # a non-image file, a truncated PNG
+    (tmp_path / "notes.png").write_text("hello")
+    assert main(["detect", str(good), str(tmp_path / "notes.png"), "--out", str(out)]) == 2
+    _one_line_error(capsys, "notes.png", "not an image")
+    assert not out.exists()
+    trunc = tmp_path / "trunc.png"
+    trunc.write_bytes(good.read_bytes()[:200])
+    assert main(["detect", str(trunc), "--out", str(out)]) == 2
+    _one_line_error(capsys, "trunc.png")
+    assert not out.exists()
+    # an empty folder, a missing file
+    (tmp_path / "empty").mkdir()
+    assert main(["detect", str(tmp_path / "empty"), "--out", str(out)]) == 2
+    _one_line_error(capsys, "empty", "no image files")
+    assert main(["detect", str(tmp_path / "nope.jpg"), "--out", str(out)]) == 2
+    _one_line_error(capsys, "nope.jpg")
+    # two photos with the same stem
+    (tmp_path / "b").mkdir()
+    shutil.copy(good, tmp_path / "b" / "good.png")
+    assert main(["detect", str(good), str(tmp_path / "b"), "--out", str(out)]) == 2
+    _one_line_error(capsys, "share the name")
+    # models: not ONNX, wrong output shape, unsupported opset (file and metadata), fixed size
+    (tmp_path / "junk.onnx").write_bytes(b"\x00\x01junk")
+    cases = {
+        "junk.onnx": "not a usable ONNX model",
+        _tiny_model(tmp_path / "c5.onnx", out_channels=5).name: "output has shape",
+        _tiny_model(tmp_path / "op99.onnx", opset=99).name: "not a usable ONNX model",
+        _tiny_model(tmp_path / "meta.onnx", meta_opset="99").name: "opset 99",
+        _tiny_model(tmp_path / "fixed.onnx", fixed=True).name: "fixed image size",
+        "missing.onnx": "model file not found",
+    }
+    for name, words in cases.items():
+        assert main(["detect", str(good), "--out", str(out), "--model", str(tmp_path / name)]) == 2
+        _one_line_error(capsys, name, words)
+        assert not out.exists()
+    # the tiny 7-channel model is a valid (if useless) model
+    assert main(["detect", str(good), "--out", str(out), "--quiet",
+                 "--model", str(_tiny_model(tmp_path / "ok.onnx"))]) == 0
+
+
+def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    flight = tmp_path / "flight"
+    assert main(["simulate", str(flight), "--keyframes", "6", "--seed", "2", "--width", "160",
+                 "--height", "120", "--images", "--quiet"]) == 0
+    photos = sorted((flight / "images").iterdir())
+    assert len(photos) == 6 and photos[0].name == "0.000000.png"
+    assert read_image(photos[0]).shape == (120, 160, 3)
+    # no heat-maps: fit detects them from the photos
+    shutil.rmtree(flight / "heatmaps")
+    out = tmp_path / "fit"
+    assert main(["fit", str(flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["heatmaps"].startswith("detected from images/")
+    assert not (flight / "heatmaps").exists()
+    # a photo missing / of the wrong size: one clear error, nothing written
+    photos[3].unlink()
+    assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
+    _one_line_error(capsys, "keyframe 3")
+    write_png(photos[3], np.zeros((60, 80, 3), np.uint8))
+    assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
+    _one_line_error(capsys, "80x60", "camera.yaml")
+    assert not (tmp_path / "fit2").exists()

@@ -1,0 +1,42 @@
+"""Detection metrics (turbinefit.eval.detection) on hand-made heat-maps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from turbinefit.eval.detection import DetectionStats, peak
+from turbinefit.sim.render import render_keypoint_heatmaps
+
+
+def _maps(uv: np.ndarray, lab: np.ndarray) -> np.ndarray:
+    return render_keypoint_heatmaps(60, 80, [uv], [lab], sigma_px=1.5)
+
+
+def test_peak_is_sub_pixel() -> None:
+    uv = np.array([[20.3, 30.6]] * 6)
+    m = _maps(uv, np.array([True] + [False] * 5))
+    u, v, val = peak(m[0])
+    assert abs(u - 20.3) < 0.05 and abs(v - 30.6) < 0.05 and val > 0.8
+
+
+def test_counts() -> None:
+    uv = np.array([[10, 10], [10, 40], [30, 40], [50, 20], [60, 50], [5, 55]], float)
+    vis = np.array([True, True, False, True, True, True])
+    target = _maps(uv, vis)
+    pred = target.copy()
+    # the hub (out of view) is "seen" anyway: a false peak; tip 3 is missed, one extra tip
+    pred[2] = _maps(np.array([[40.0, 30.0]] * 6), np.array([False, False, True, False, False, False]))[2]
+    extra = uv.copy()
+    extra[5] = (70, 10)
+    pred[3] = _maps(extra, np.array([False, False, False, True, True, True]))[3]
+    pred[3][np.abs(np.arange(80) - 5)[None, :] + np.abs(np.arange(60) - 55)[:, None] < 6] = 0
+    pred[3] = np.maximum(pred[3], _maps(uv, np.array([False] * 3 + [True, True, False]))[3])
+    st = DetectionStats(threshold=0.5)
+    st.add(pred, target, uv, vis)
+    m = st.summary()
+    assert m["base_median_px"] < 0.1 and m["base_detected"] == 1.0
+    assert m["hub_false_peak"] == 1.0 and np.isnan(m["hub_median_px"])
+    assert m["tips_recall"] == pytest.approx(2 / 3)
+    assert m["tips_precision"] == pytest.approx(2 / 3)
+    assert m["iou_tower"] == pytest.approx(1.0)

@@ -1,0 +1,181 @@
+"""Training the heat-map CNN (PyTorch): the net, its loss, ONNX export, checkpoints, labels.
+
+Needs the optional extra ``turbinefit[train]`` (``make test`` installs it); the whole
+module is skipped without PyTorch.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("onnx")
+
+from turbinefit.cli import main  # noqa: E402
+from turbinefit.detect import HeatmapDetector, ModelInfo  # noqa: E402
+from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints  # noqa: E402
+from turbinefit.io.images import read_image, write_png  # noqa: E402
+from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # noqa: E402
+from turbinefit.train.labels import labelled_sample  # noqa: E402
+from turbinefit.train.net import HeatmapNet, num_parameters  # noqa: E402
+from turbinefit.train.trainer import (  # noqa: E402
+    _jitter,
+    export_onnx,
+    forward,
+    heatmap_loss,
+)
+
+torch.set_num_threads(1)
+
+
+def test_net_shape_and_size() -> None:
+    net = HeatmapNet()
+    assert 4e5 < num_parameters(net) < 8e5
+    out = forward(net, torch.rand(2, 3, 120, 160))  # 120 is padded to 128 and cropped back
+    assert out.shape == (2, 7, 120, 160)
+    assert torch.isfinite(out).all()
+
+
+def test_loss_optimum_is_the_target() -> None:
+    target = torch.tensor([0.0, 0.2, 0.7, 1.0])
+    logits = torch.logit(target.clamp(1e-4, 1 - 1e-4)).requires_grad_(True)
+    loss = heatmap_loss(logits.view(1, 1, 1, 4), target.view(1, 1, 1, 4), pos_weight=10.0)
+    (g,) = torch.autograd.grad(loss, logits)
+    assert float(g.abs().max()) < 1e-3
+
+
+def test_a_few_steps_reduce_the_loss(tmp_path: Path) -> None:
+    data = build_dataset(tmp_path / "d", DatasetSpec(8, seed=5), workers=1, progress=False)
+    x = torch.from_numpy(np.array(data.images).transpose(0, 3, 1, 2).copy()).float() / 255
+    y = torch.from_numpy(np.array(data.targets)).float() / 255
+    torch.manual_seed(0)
+    net = HeatmapNet()
+    opt = torch.optim.AdamW(net.parameters(), lr=2e-3)
+    losses = []
+    for _ in range(25):
+        loss = heatmap_loss(forward(net, x), y, 10.0)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(float(loss.detach()))
+    assert losses[-1] < 0.5 * losses[0]
+
+
+def test_onnx_output_equals_pytorch(tmp_path: Path) -> None:
+    torch.manual_seed(1)
+    net = HeatmapNet()
+    net.train()
+    for _ in range(3):  # non-trivial batch-norm statistics
+        net(torch.rand(4, 3, 128, 160))
+    net.eval()
+    path = export_onnx(net, tmp_path / "m.onnx", ModelInfo(threshold=0.42))
+    det = HeatmapDetector(path, threads=1)
+    assert det.info.threshold == pytest.approx(0.42)
+    rng = np.random.default_rng(0)
+    for h, w in ((120, 160), (96, 160), (160, 160)):  # height follows the photo's aspect
+        img = rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
+        got = det.detect_small(img)
+        x = torch.from_numpy(img.transpose(2, 0, 1).copy()).float()[None] / 255
+        with torch.no_grad():
+            ref = torch.sigmoid(forward(net, x))[0].numpy()
+        assert got.shape == ref.shape
+        np.testing.assert_allclose(got, ref, atol=2e-5)
+
+
+def test_jitter_keeps_range() -> None:
+    x = torch.rand(4, 3, 8, 8)
+    y = _jitter(x)
+    assert y.shape == x.shape and float(y.min()) >= 0 and float(y.max()) <= 1
+
+
+def test_coco_labels_give_the_rendered_targets(tmp_path: Path) -> None:
+    """A rendered sample exported as a COCO file and imported again gives its own targets."""
+    spec = DatasetSpec(1, seed=0)
+    images = []
+    for i in range(12):
+        s = render_sample(spec, i)
+        if s.visible.sum() >= 5:
+            images.append((i, s))
+        if len(images) == 2:
+            break
+    assert images, "no view with the turbine in view"
+    labelled = []
+    for i, s in images:
+        write_png(tmp_path / f"{i}.png", s.image)
+        labelled.append(LabelledImage(tmp_path / f"{i}.png", spec.width, spec.height, (
+            TurbineKeypoints(s.points, np.where(s.visible, 2, 0).astype(np.int8)),)))
+    write_coco_keypoints(labelled, tmp_path / "labels.json", tmp_path)
+    from turbinefit.io.coco import read_coco_keypoints
+
+    back = read_coco_keypoints(tmp_path / "labels.json", tmp_path)
+    for (_, s), item in zip(images, back, strict=True):
+        img, tgt = labelled_sample(item, spec.width, spec.height, spec.sigma_px)
+        np.testing.assert_array_equal(img, s.image)
+        vis = s.visible
+        # points: identical blobs for the labelled (visible) points
+        for c in (0, 1, 2):
+            if vis[c]:
+                np.testing.assert_allclose(tgt[c] / 255.0, s.target[c], atol=0.01)
+        # lines between two visible points: the same ridge
+        for a, b, c in ((0, 1, 4), (1, 2, 5)):
+            if vis[a] and vis[b]:
+                np.testing.assert_allclose(tgt[c] / 255.0, s.target[c], atol=0.02)
+
+
+def test_train_cli_smoke_resume_and_fine_tune(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "model"
+    args = ["train", "--out", str(out), "--images", "16", "--val-images", "8", "--epochs", "2",
+            "--batch", "8", "--workers", "1", "--quiet", "--data", str(tmp_path / "data")]
+    assert main([*args, "--max-steps", "2"]) == 0
+    first = (out / "history.csv").read_text().splitlines()
+    assert len(first) == 2  # header + epoch 1 (max-steps stopped it)
+    assert (out / "model.onnx").is_file() and (out / "weights.npz").is_file()
+    # the same command resumes after the checkpointed epoch and finishes the run
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "resuming" in text
+    assert len((out / "history.csv").read_text().splitlines()) == 3
+    det = HeatmapDetector(out / "model.onnx", threads=1)
+    assert det.detect(np.zeros((60, 80, 3), np.uint8)).shape == (7, 60, 80)
+    # a resumed run with other settings is refused
+    assert main([*args[:-2], "--data", str(tmp_path / "data"), "--lr", "0.01"]) == 2
+    # fine-tuning on COCO-labelled photos from these weights
+    s = render_sample(DatasetSpec(1, seed=0), 0)
+    write_png(tmp_path / "p.png", s.image)
+    write_coco_keypoints([LabelledImage(tmp_path / "p.png", 160, 120, (
+        TurbineKeypoints(s.points, np.where(s.visible, 2, 0).astype(np.int8)),))],
+        tmp_path / "l.json", tmp_path)
+    ft = tmp_path / "ft"
+    assert main(["train", "--out", str(ft), "--images", "16", "--val-images", "0", "--epochs",
+                 "1", "--batch", "8", "--workers", "1", "--quiet", "--data", str(tmp_path / "data"),
+                 "--labels", str(tmp_path / "l.json"), "--images-dir", str(tmp_path),
+                 "--init", str(out / "weights.npz")]) == 0
+    assert (ft / "model.onnx").is_file()
+
+
+@pytest.mark.parametrize("bad", ["missing", "unknown_name", "weights"])
+def test_train_bad_labels(tmp_path: Path, bad: str, capsys: pytest.CaptureFixture[str]) -> None:
+    write_png(tmp_path / "a.png", np.zeros((120, 160, 3), np.uint8))
+    doc = {"images": [{"id": 1, "file_name": "a.png" if bad != "missing" else "b.png",
+                       "width": 160, "height": 120}],
+           "annotations": [],
+           "categories": [{"id": 1, "name": "turbine",
+                           "keypoints": ["base", "hub", "blade_tip" if bad == "unknown_name"
+                                         else "tower_top"]}]}
+    (tmp_path / "l.json").write_text(json.dumps(doc))
+    if bad == "weights":
+        (tmp_path / "w.npz").write_bytes(b"not an npz")
+    args = ["train", "--out", str(tmp_path / "o"), "--images", "8", "--val-images", "0",
+            "--epochs", "1", "--workers", "1", "--quiet", "--data", str(tmp_path / "data"),
+            "--labels", str(tmp_path / "l.json"), "--images-dir", str(tmp_path)]
+    if bad == "weights":
+        args += ["--init", str(tmp_path / "w.npz")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("turbinefit: error: ") and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o" / "model.onnx").exists()
+    assert read_image(tmp_path / "a.png").shape == (120, 160, 3)
