@@ -43,6 +43,7 @@ model: $(STAMP)
 	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS)
 	cp models/heatmap_cnn/model.onnx src/turbinefit/models/heatmap_cnn.onnx
 	cp models/heatmap_cnn/weights.npz src/turbinefit/models/heatmap_cnn.npz
+	cp models/heatmap_cnn/history.csv src/turbinefit/models/heatmap_cnn_history.csv
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
