@@ -14,6 +14,7 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.sim.images import (
     NO_EFFECTS,
     Scene,
+    _look,
     render_flight_images,
     render_image,
     sample_scene,
@@ -31,13 +32,7 @@ TURBINE = PRESETS["nrel5mw"]
 
 def _pose(pos: tuple[float, float, float], yaw: float, pitch: float, roll: float = 0.0) -> SE3:
     """world_T_cam of an OpenCV camera at ``pos`` looking along yaw/pitch [rad]."""
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    z = np.array([cp * math.cos(yaw), cp * math.sin(yaw), sp])
-    x = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-    y = np.cross(z, x)
-    cr, sr = math.cos(roll), math.sin(roll)
-    R = np.stack([cr * x + sr * y, -sr * x + cr * y, z], axis=-1)
-    return SE3.from_rotation_translation(R, np.asarray(pos, dtype=float))
+    return _look(np.asarray(pos, dtype=float), yaw, pitch, roll)
 
 
 def _look_at(eye: np.ndarray, target: np.ndarray) -> SE3:
