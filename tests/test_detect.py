@@ -197,3 +197,18 @@ def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.Captur
     assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
     _one_line_error(capsys, "80x60", "camera.yaml")
     assert not (tmp_path / "fit2").exists()
+
+
+def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
+    from turbinefit.io.flight_folder import read_flight
+    from turbinefit.pipeline import FIT_DETECT_WIDTH, image_heatmap_source
+
+    flight = tmp_path / "f"
+    assert main(["simulate", str(flight), "--keyframes", "3", "--seed", "1", "--width", "640",
+                 "--height", "480", "--images", "--quiet"]) == 0
+    f = read_flight(flight, heatmaps=image_heatmap_source(flight, threads=1))
+    assert (f.camera.width, f.camera.height) == (FIT_DETECT_WIDTH, 240)
+    assert (f.heatmaps.height, f.heatmaps.width) == (240, FIT_DETECT_WIDTH)
+    full = read_flight(flight)
+    assert f.camera.fx == pytest.approx(full.camera.fx / 2)
+    assert f.camera.cx == pytest.approx((full.camera.cx + 0.5) / 2 - 0.5)
