@@ -390,6 +390,13 @@ def read_flight(folder: StrPath, mmap: bool = True,
         raise InputError(str(e), path=root) from e
 
 
+#: The flight folder's sub-folders: which file names they may hold, and what those are.
+_DIR_CONTENTS: dict[str, tuple[Callable[[Path], bool], str]] = {
+    HEATMAP_DIR: (lambda p: p.suffix == ".npy", "a heat-map file"),
+    IMAGE_DIR: (lambda p: p.suffix.lower() in IMAGE_SUFFIXES, "a keyframe photo"),
+}
+
+
 def _only_flight_entries(folder: Path) -> str | None:
     """None if ``folder`` holds only flight-folder entries (safe to replace), else why not.
 
@@ -398,18 +405,13 @@ def _only_flight_entries(folder: Path) -> str | None:
     for entry in folder.iterdir():
         if entry.name not in FLIGHT_ENTRIES:
             return f"{entry.name!r} is not part of a flight folder"
-        if entry.name == HEATMAP_DIR:
+        if entry.name in _DIR_CONTENTS:
+            allowed, what = _DIR_CONTENTS[entry.name]
             if not entry.is_dir() or entry.is_symlink():
                 return f"{entry.name!r} is not a directory"
             for sub in entry.iterdir():
-                if sub.suffix != ".npy" or not sub.is_file():
-                    return f"'{HEATMAP_DIR}/{sub.name}' is not a heat-map file"
-        if entry.name == IMAGE_DIR:
-            if not entry.is_dir() or entry.is_symlink():
-                return f"{entry.name!r} is not a directory"
-            for sub in entry.iterdir():
-                if sub.suffix.lower() not in IMAGE_SUFFIXES or not sub.is_file():
-                    return f"'{IMAGE_DIR}/{sub.name}' is not a keyframe photo"
+                if not allowed(sub) or not sub.is_file():
+                    return f"'{entry.name}/{sub.name}' is not {what}"
     return None
 
 
