@@ -34,10 +34,9 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +63,8 @@ from turbinefit.train.net import STRIDE, HeatmapNet, num_parameters
 #: Seed offset of the held-out renders (independent of the training renders).
 VAL_SEED_OFFSET = 1_000_003
 OPSET = 17
+#: TrainConfig fields that must match when a run is resumed from its checkpoint.
+_RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels")
 
 
 @dataclass
@@ -106,9 +107,6 @@ class TrainConfig:
     images_dir: Path | None = None
     init: Path | None = None
     max_steps: int | None = None
-    #: settings that must match when a run is resumed
-    _RESUME_KEYS: tuple[str, ...] = field(default=("n_images", "val_images", "epochs", "batch",
-                                                   "lr", "seed", "labels"), repr=False)
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -339,7 +337,6 @@ class TrainResult:
 
 def _config_dict(cfg: TrainConfig) -> dict[str, Any]:
     d = asdict(cfg)
-    d.pop("_RESUME_KEYS", None)
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
 
 
@@ -384,7 +381,7 @@ def train(cfg: TrainConfig, progress: bool = True,
             raise InputError(f"cannot read checkpoint: {e}", path=ckpt_path) from None
         assert resume is not None
         old = resume["config"]
-        for k in cfg._RESUME_KEYS:
+        for k in _RESUME_KEYS:
             if str(old.get(k)) != str(_config_dict(cfg).get(k)):
                 raise InputError(f"checkpoint was trained with {k}={old.get(k)}, not "
                                  f"{_config_dict(cfg).get(k)}; use another --out to start anew",
@@ -484,6 +481,3 @@ def train(cfg: TrainConfig, progress: bool = True,
     save_npz(net, out / "weights.npz")
     return TrainResult(out, model_path, history, threshold, num_parameters(net))
 
-
-def threads_default() -> int:
-    return 1 if (os.cpu_count() or 1) <= 2 else max(1, (os.cpu_count() or 2) // 2)
