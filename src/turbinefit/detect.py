@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
-from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
+from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image, resize_maps
 
@@ -214,12 +214,6 @@ def overlay(image: NDArray[np.uint8], maps: F32Array) -> NDArray[np.uint8]:
         colour = CHANNEL_COLOURS[np.asarray(chans)[np.argmax(sub, axis=0)]]
         out = out * (1.0 - alpha) + colour * alpha
     return np.clip(out, 0, 255).astype(np.uint8)
-
-
-def legend() -> str:
-    """One line per channel: name and overlay colour."""
-    names = {0: "red", 1: "orange", 2: "yellow", 3: "magenta", 4: "cyan", 5: "green", 6: "blue"}
-    return ", ".join(f"{n}={names[i]}" for i, n in enumerate(CHANNEL_NAMES))
 
 
 def unique_stems(paths: Sequence[Path]) -> None:

@@ -32,9 +32,11 @@ from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import atomic_output_dir, check_output_dir, read_text, write_text_atomic
 from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
 from turbinefit.io.flight_folder import (
+    HEATMAP_DIR,
     IMAGE_DIR,
     HeatmapSource,
     has_heatmaps,
+    heatmap_filename,
     keyframe_images,
     read_flight,
 )
@@ -223,7 +225,7 @@ def fit_folder(
     except NonFiniteHeatmapError as exc:
         stamp = flight.timestamps[exc.keyframe]
         raise InputError("heat-map contains NaN or inf",
-                         flight_dir / "heatmaps" / f"{stamp:.6f}.npy") from None
+                         flight_dir / HEATMAP_DIR / heatmap_filename(stamp)) from None
     timings["solve"] = time.perf_counter() - t1
 
     before = after = None

@@ -105,9 +105,14 @@ _NPY_MAGIC = b"\x93NUMPY"
 _HEATMAP_DTYPE = np.dtype("<f4")
 
 
+def keyframe_stem(timestamp: float) -> str:
+    """The name of a keyframe's files without suffix, ``'%.6f' % timestamp``."""
+    return f"{timestamp:.6f}"
+
+
 def heatmap_filename(timestamp: float) -> str:
     """The file name of a keyframe's heat-maps, ``'%.6f.npy' % timestamp``."""
-    return f"{timestamp:.6f}.npy"
+    return keyframe_stem(timestamp) + ".npy"
 
 
 # --------------------------------------------------------------------------- heat-maps
@@ -319,7 +324,7 @@ def keyframe_images(folder: StrPath, timestamps: ArrayLike) -> list[Path]:
     present = {p.name for p in img_dir.iterdir()}
     out = []
     for k, t in enumerate(np.asarray(timestamps, dtype=np.float64).tolist()):
-        stem = f"{t:.6f}"
+        stem = keyframe_stem(t)
         name = next((stem + suf for suf in IMAGE_SUFFIXES if stem + suf in present), None)
         if name is None:
             raise InputError(f"no photo for keyframe {k}, timestamp {stem} (expected "
@@ -516,7 +521,7 @@ def _write_images(tmp_dir: Path, final_dir: Path, flight: Flight,
     want = (flight.camera.height, flight.camera.width, 3)
     count = 0
     for t, img in zip(flight.timestamps.tolist(), images, strict=False):
-        name = f"{t:.6f}.png"
+        name = keyframe_stem(t) + ".png"
         if img.shape != want or img.dtype != np.uint8:
             raise InputError(f"photo is {img.dtype} {img.shape}, expected uint8 {want}",
                              path=final_dir / name)
