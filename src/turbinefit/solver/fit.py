@@ -67,7 +67,7 @@ class FitResult:
     history: list[IterationRecord] = field(default_factory=list)
 
 
-def _corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
+def corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
     """Fraction of found-flags that changed and mean target shift [px] of the rest."""
     flips = 0
     total = 0
@@ -98,17 +98,23 @@ class _Stage:
     iterations: int
 
 
+def match_config(cfg: FitConfig) -> FitConfig:
+    """The options of the *match* warm-up stage derived from ``cfg``: point and line
+    correspondences (wide basins), a Huber loss, line residuals along the search normal."""
+    return dataclasses.replace(
+        cfg, points="corr" if cfg.points != "none" else "none",
+        lines="corr" if cfg.lines != "none" else "none",
+        pixel_sigma=cfg.warmup_pixel_sigma, robust="huber", robust_scale=2.0,
+        line_residual="normal", function_tolerance=cfg.warmup_function_tolerance,
+        stall_iterations=1)
+
+
 def _stages(flight: Flight, cfg: FitConfig, problem: FitProblem,
             keyframes: NDArray[np.int_] | None) -> list[_Stage]:
     """The warm-up stages (see :class:`FitConfig`) and the configured cost."""
     out: list[_Stage] = []
     if cfg.warmup:
-        corr_cfg = dataclasses.replace(
-            cfg, points="corr" if cfg.points != "none" else "none",
-            lines="corr" if cfg.lines != "none" else "none",
-            pixel_sigma=cfg.warmup_pixel_sigma, robust="huber", robust_scale=2.0,
-            line_residual="normal", function_tolerance=cfg.warmup_function_tolerance,
-            stall_iterations=1)
+        corr_cfg = match_config(cfg)
         moves_poses = cfg.mode != "turbine" and problem.num_keyframes > 1
         if moves_poses and cfg.warmup_align_rounds > 0 and cfg.lambda_pair > 0:
             align = dataclasses.replace(corr_cfg, lambda_pair=cfg.lambda_pair * cfg.warmup_stiffness)
@@ -180,7 +186,7 @@ def fit(
             if not prob.needs_correspondences or (last and not final_stage):
                 break  # (the next stage searches for its own correspondences)
             new_corr = prob.find_correspondences(poses, theta)
-            flips, shift = _corr_change(corr, new_corr)
+            flips, shift = corr_change(corr, new_corr)
             corr = new_corr
             done = last or (flips < 0.005 and shift < 0.25)
             if done and not final_stage:

@@ -106,3 +106,32 @@ def solve_arrow(
     if not (np.all(np.isfinite(dp)) and np.all(np.isfinite(dt))):
         raise np.linalg.LinAlgError("non-finite step")
     return dp, dt
+
+
+def arrow_covariance(
+    D: FloatArray, B: FloatArray, C: FloatArray | None, E: FloatArray | None, index: int,
+) -> tuple[FloatArray, FloatArray | None]:
+    """Marginal covariances of pose ``index`` (6, 6) and of theta (7, 7) or None.
+
+    The covariance is the inverse of the (undamped) arrow matrix ``[[A, C], [C^T, E]]``
+    of :func:`solve_arrow`; only the wanted blocks are formed, in O(N): with
+    ``S = E - C^T A^-1 C``, ``cov(theta) = S^-1`` and
+    ``cov(x_k) = (A^-1)_kk + (A^-1 C)_k S^-1 (A^-1 C)_k^T``. Raises
+    ``numpy.linalg.LinAlgError`` if the matrix is singular.
+    """
+    n = D.shape[0]
+    unit = np.zeros((n, 6, 6))
+    unit[index] = np.eye(6)
+    rhs = unit if C is None else np.concatenate([unit, C], axis=2)
+    X = solve_block_tridiagonal(D, B, rhs)
+    cov_p = X[index, :, :6]
+    cov_t = None
+    if C is not None and E is not None:
+        XC = X[..., 6:]
+        S = E - np.einsum("nai,naj->ij", C, XC)
+        cov_t = np.linalg.inv(0.5 * (S + S.T))
+        cov_p = cov_p + XC[index] @ cov_t @ XC[index].T
+    cov_p = 0.5 * (cov_p + cov_p.T)
+    if not (np.all(np.isfinite(cov_p)) and (cov_t is None or np.all(np.isfinite(cov_t)))):
+        raise np.linalg.LinAlgError("non-finite covariance")
+    return cov_p, cov_t

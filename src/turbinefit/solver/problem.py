@@ -43,6 +43,7 @@ from turbinefit.costs.robust import RobustLoss
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig
+from turbinefit.solver.marginal import GaussianPrior
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
 FloatArray = NDArray[np.float64]
@@ -118,10 +119,16 @@ class FitProblem:
         config: the fit options.
         keyframes: indices into the flight's keyframes to use (default: all), in time order;
             consecutive ones are linked by pairwise edges.
+        fixed: (len(keyframes),) poses held at their current values (default: from the
+            config: the first with ``gauge="first"``, all with ``mode="turbine"``).
+        prior: a Gaussian prior on the first used keyframe's pose and theta (what
+            marginalised keyframes left behind, see :mod:`turbinefit.solver.marginal`).
     """
 
     def __init__(self, flight: Flight, config: FitConfig,
-                 keyframes: NDArray[np.int_] | None = None) -> None:
+                 keyframes: NDArray[np.int_] | None = None, *,
+                 fixed: NDArray[np.bool_] | None = None,
+                 prior: GaussianPrior | None = None) -> None:
         self.flight = flight
         self.config = config
         self.keyframes = (np.arange(flight.num_keyframes) if keyframes is None
@@ -155,10 +162,13 @@ class FitProblem:
         self._line_index = np.repeat(np.arange(len(LINES)), n)
         self.loss = RobustLoss(config.robust, config.robust_scale)
         self.fixed = np.zeros(self.num_keyframes, dtype=bool)
-        if config.mode == "turbine":
+        if fixed is not None:
+            self.fixed[:] = np.asarray(fixed, dtype=bool)
+        elif config.mode == "turbine":
             self.fixed[:] = True
         elif config.gauge == "first":
             self.fixed[0] = True
+        self.prior = prior
         self.optimise_theta = config.mode in ("joint", "turbine")
         #: whether rounds need find_correspondences (corr terms or visible-part sampling)
         self.needs_correspondences = "corr" in (config.points, config.lines) or (
@@ -356,6 +366,10 @@ class FitProblem:
         if use_prior:
             rg = (poses.translation - self.prior_position) / cfg.gps_sigma
             terms["prior"] = 0.5 * float(np.sum(rg * rg))
+        if self.prior is not None:
+            dx = self.prior.delta(poses[0], theta)
+            Hdx = self.prior.H @ dx
+            terms["prior_marginal"] = float(0.5 * dx @ Hdx + self.prior.g @ dx)
         cost = float(sum(terms.values()))
         n_res += 6 * (N - 1) if want_pair else 0
         lin = Linearization(cost=cost, terms=terms, num_residuals=n_res, in_view=in_view)
@@ -377,6 +391,13 @@ class FitProblem:
         if use_prior:
             D[:, [0, 1, 2], [0, 1, 2]] += 1.0 / cfg.gps_sigma**2
             g_p[:, :3] += rg / cfg.gps_sigma
+        if self.prior is not None:  # gradient H dx + g, Hessian H (first-estimate Jacobians)
+            gx = Hdx + self.prior.g
+            D[0] += self.prior.H[:6, :6]
+            g_p[0] += gx[:6]
+            JtHJ[0, :6, 6:] += self.prior.H[:6, 6:]
+            JtHJ[0, 6:, 6:] += self.prior.H[6:, 6:]
+            g_u[0, 6:] += gx[6:]
         # hold fixed poses: identity blocks, no coupling, no gradient
         fx = self.fixed
         if fx.any():

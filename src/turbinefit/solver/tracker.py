@@ -1,0 +1,482 @@
+"""In-flight tracking: a fixed-lag smoother over the latest keyframes and the turbine.
+
+The paper optimises "successively as the drone navigates around the turbine". The
+:class:`Tracker` takes one keyframe at a time (timestamp, GPS/IMU pose, heat-maps) and,
+before the next arrives, refines the poses of a sliding window of the last ``window``
+keyframes together with theta:
+
+1. the new pose is predicted from the previous estimate and the measured step (the
+   pairwise term's residual is zero there);
+2. a few Levenberg-Marquardt rounds (optionally one *match* round of wide-basin
+   correspondences first, as the batch warm-up does) refine the window with the
+   configured cost of :class:`~turbinefit.solver.config.FitConfig`;
+3. when the window is full, its oldest keyframe is marginalised: its image terms, its
+   pairwise edge and the prior it carried become a Gaussian prior on the next keyframe
+   and theta (:mod:`turbinefit.solver.marginal`). The pose itself is frozen at its
+   estimate.
+
+Work per keyframe is therefore bounded by the window, not the flight. The latest pose's
+and theta's marginal covariances come from the window's Gauss-Newton Hessian (with the
+prior): the inverse of the information, in local pose coordinates (m, rad) and theta's
+units.
+
+Start-up: theta begins at its initial value with a Gaussian prior (``theta_sigma``), so
+the first keyframes, which see the turbine from one side only, cannot move it far; the
+prior is folded into the marginal information like any other term and fades in weight as
+evidence accumulates. Gauge: as in the batch fit, the first keyframe is held fixed
+(``gauge="first"``) or every keyframe is weakly anchored to its GPS position (``"gps"``).
+
+With ``window=None`` nothing is marginalised and :meth:`Tracker.finish` runs the batch
+problem to convergence: the tracker then equals :func:`turbinefit.solver.fit.fit`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.costs.pairwise import pairwise_residuals
+from turbinefit.flight import Flight
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
+from turbinefit.solver.config import FitConfig
+from turbinefit.solver.fit import corr_change, match_config
+from turbinefit.solver.linalg import arrow_covariance
+from turbinefit.solver.lm import levenberg_marquardt
+from turbinefit.solver.marginal import (
+    GaussianPrior,
+    PoseConditional,
+    back_substitute,
+    marginalize_pose,
+)
+from turbinefit.solver.problem import Correspondences, FitProblem, Linearization
+from turbinefit.turbine.model import TurbineParams
+
+FloatArray = NDArray[np.float64]
+
+#: Default standard deviations of the start-up prior on theta: base x, base y, tower
+#: height [m], heading [rad], nacelle length [m], blade rotation [rad], blade length [m]
+#: (twice the simulator's initial turbine errors).
+DEFAULT_THETA_SIGMA: tuple[float, ...] = (
+    2.0, 2.0, 4.0, math.radians(10.0), 1.0, math.radians(10.0), 4.0)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """How the tracker updates. Units as named.
+
+    Attributes:
+        fit: the cost and its options (as for the batch fit; warm-up options other than
+            ``warmup_pixel_sigma`` are not used).
+        window: keyframes in the sliding window (>= 2), or None: keep all (the batch
+            problem; per-keyframe work then grows with the flight).
+        rounds: correspondence rounds of the configured cost per keyframe.
+        iterations: Levenberg-Marquardt iterations per round.
+        match_rounds: wide-basin correspondence rounds before them (the batch fit's
+            *match* warm-up, with ``fit.warmup_iterations`` iterations) on the first
+            ``match_keyframes`` keyframes and whenever the turbine comes back into view.
+        match_keyframes: see ``match_rounds``.
+        theta_sigma: standard deviations of the start-up prior on theta (7 values, see
+            :data:`DEFAULT_THETA_SIGMA`), or None: no prior (theta is then unobservable
+            from the first keyframe alone; use with care).
+        theta_prior_release: the start-up prior is removed once the images alone inform
+            every direction of theta this many times more than it does (the smallest
+            generalised eigenvalue of data and prior information); None: keep it.
+        finish_rounds, finish_iterations: rounds and iterations of :meth:`Tracker.finish`.
+    """
+
+    fit: FitConfig = field(default_factory=FitConfig)
+    window: int | None = 20
+    rounds: int = 1
+    iterations: int = 5
+    match_rounds: int = 1
+    match_keyframes: int = 5
+    theta_sigma: tuple[float, ...] | None = DEFAULT_THETA_SIGMA
+    theta_prior_release: float | None = 10.0
+    finish_rounds: int = 3
+    finish_iterations: int = 15
+
+    def __post_init__(self) -> None:
+        if self.fit.mode not in ("joint", "pose"):
+            raise ValueError(f"mode: tracking needs joint or pose (got {self.fit.mode!r})")
+        if self.window is not None and (isinstance(self.window, bool)
+                                        or not isinstance(self.window, int) or self.window < 2):
+            raise ValueError(f"window: must be a whole number >= 2 or None (got {self.window!r})")
+        for name in ("rounds", "iterations", "finish_rounds", "finish_iterations"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: must be a whole number >= 1 (got {v!r})")
+        for name in ("match_rounds", "match_keyframes"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueError(f"{name}: must be a whole number >= 0 (got {v!r})")
+        r = self.theta_prior_release
+        if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
+            raise ValueError(f"theta_prior_release: must be a positive number or None (got {r!r})")
+        if self.theta_sigma is not None and (
+                len(self.theta_sigma) != 7
+                or not all(math.isfinite(s) and s > 0 for s in self.theta_sigma)):
+            raise ValueError("theta_sigma: needs 7 positive finite standard deviations")
+
+
+@dataclass(frozen=True)
+class TrackEstimate:
+    """The tracker's answer to one keyframe, at the moment it was processed.
+
+    Attributes:
+        index: keyframe number (0-based, in arrival order).
+        timestamp: its time [s].
+        world_T_cam: the keyframe's estimated camera-to-world pose.
+        turbine: the current turbine estimate (canonical ranges).
+        pose_covariance: (6, 6) marginal covariance of the pose in the local coordinates
+            of :meth:`SE3.retract` (translation [m^2] first, rotation [rad^2] in the camera
+            frame); zeros if the pose is held fixed (the gauge keyframe); None if the
+            information is singular.
+        theta_covariance: (7, 7) marginal covariance of theta (units of
+            :class:`TurbineParams`); None with the turbine fixed (``mode="pose"``) or
+            singular information.
+        cost: the window's cost after the update.
+        iterations: LM iterations spent.
+        window: keyframes in the window during the update.
+        in_view: model points and line samples projected into the image, by term.
+        update_s: wall time of the update [s].
+    """
+
+    index: int
+    timestamp: float
+    world_T_cam: SE3
+    turbine: TurbineParams
+    pose_covariance: FloatArray | None
+    theta_covariance: FloatArray | None
+    cost: float
+    iterations: int
+    window: int
+    in_view: dict[str, int]
+    update_s: float
+
+    def position_sigma_m(self) -> float | None:
+        """RMS position standard deviation of the pose, sqrt(trace / 3) [m], or None."""
+        if self.pose_covariance is None:
+            return None
+        return float(math.sqrt(max(float(np.trace(self.pose_covariance[:3, :3])), 0.0) / 3.0))
+
+
+def _predict(world_T_prev: SE3, meas_prev: SE3, meas_new: SE3) -> SE3:
+    """The new pose at zero pairwise residual: the previous estimate moved by the measured
+    world-frame step and rotated by the measured relative rotation."""
+    rel = meas_prev.inverse() @ meas_new
+    q = (world_T_prev @ rel).wxyz
+    return SE3(np.concatenate([q, world_T_prev.translation + meas_new.translation
+                               - meas_prev.translation]))
+
+
+class Tracker:
+    """Successive joint estimation of keyframe poses and the turbine (fixed-lag smoother).
+
+    Args:
+        camera: intrinsics of the heat-maps' pixel grid.
+        initial_turbine: the turbine's initial estimate (the centre of the start-up prior).
+        config: see :class:`TrackerConfig`.
+        detector: turns an image into (7, H, W) heat-maps at the camera's size, for
+            :meth:`update` with ``image=`` (e.g. a wrapped
+            :class:`turbinefit.detect.HeatmapDetector`).
+
+    Every keyframe passed to :meth:`update` must have a later timestamp than the one
+    before. Heat-maps are referenced, not copied, while their keyframe is in the window.
+    """
+
+    def __init__(self, camera: PinholeCamera, initial_turbine: TurbineParams,
+                 config: TrackerConfig | None = None, *,
+                 detector: Callable[[NDArray[np.uint8]], NDArray[np.floating]] | None = None,
+                 ) -> None:
+        self.camera = camera
+        self.config = config or TrackerConfig()
+        self.detector = detector
+        self.initial_turbine = initial_turbine
+        cfg = self.config
+        self._refine_cfg = cfg.fit
+        self._match_cfg = match_config(cfg.fit)
+        self._theta = initial_turbine.to_vector().astype(np.float64)
+        if not np.all(np.isfinite(self._theta)):
+            raise ValueError("initial turbine contains NaN or inf")
+        # the window (lists, oldest first)
+        self._w_index: list[int] = []
+        self._w_time: list[float] = []
+        self._w_meas: list[SE3] = []
+        self._w_est: list[SE3] = []
+        self._w_maps: list[NDArray[np.floating]] = []
+        #: what marginalised keyframes left: a prior on the window's first pose and theta
+        self._marginal: GaussianPrior | None = None
+        #: per marginalised keyframe: its conditional and the prior its elimination made
+        self._conditionals: list[PoseConditional | None] = []
+        self._cond_priors: list[GaussianPrior | None] = []
+        self._theta0 = self._theta.copy()
+        self._theta_sigma = (None if self.config.theta_sigma is None
+                             else np.asarray(self.config.theta_sigma, dtype=np.float64))
+        # every keyframe so far
+        self._times: list[float] = []
+        self._final: list[SE3 | None] = []
+        self.estimates: list[TrackEstimate] = []
+        """The causal estimate of every keyframe, in arrival order."""
+
+    # ------------------------------------------------------------------------------
+    @property
+    def num_keyframes(self) -> int:
+        return len(self._times)
+
+    @property
+    def turbine(self) -> TurbineParams:
+        """The current turbine estimate (canonical ranges)."""
+        return TurbineParams.from_vector(self._theta).canonical()
+
+    @property
+    def timestamps(self) -> FloatArray:
+        return np.asarray(self._times, dtype=np.float64)
+
+    def world_T_cam(self, back_substitution: bool = True) -> SE3:
+        """(N,) the current estimate of every keyframe: the window at its latest, and
+        marginalised keyframes moved with it through their stored conditionals
+        (:func:`~turbinefit.solver.marginal.back_substitute`, linear, O(N)), or, with
+        ``back_substitution=False``, frozen at their estimate when they left the window."""
+        out: list[SE3 | None] = list(self._final)
+        if back_substitution and self._conditionals and self._w_est:
+            moved = back_substitute(self._conditionals, self._cond_priors, self._w_est[0],
+                                    self._theta)
+            out[:len(moved)] = [m if m is not None else f for m, f in zip(moved, out, strict=False)]
+        for i, k in enumerate(self._w_index):
+            out[k] = self._w_est[i]
+        return SE3(np.stack([p.wxyz_xyz for p in out if p is not None]))
+
+    def causal_world_T_cam(self) -> SE3:
+        """(N,) each keyframe's estimate right after its own update."""
+        return SE3(np.stack([e.world_T_cam.wxyz_xyz for e in self.estimates]))
+
+    # ------------------------------------------------------------------------------
+    def _check(self, timestamp: float, world_T_cam: SE3,
+               heatmaps: NDArray[np.floating]) -> NDArray[np.floating]:
+        if not math.isfinite(timestamp):
+            raise ValueError(f"keyframe {len(self._times)}: timestamp is not finite")
+        if self._times and timestamp <= self._times[-1]:
+            raise ValueError(f"keyframe {len(self._times)}: timestamp {timestamp!r} is not "
+                             f"after the previous one ({self._times[-1]!r})")
+        if world_T_cam.batch_shape != () or not np.all(np.isfinite(world_T_cam.wxyz_xyz)):
+            raise ValueError(f"keyframe {len(self._times)}: pose must be one finite SE3")
+        maps = np.asarray(heatmaps)
+        shape = (NUM_CHANNELS, self.camera.height, self.camera.width)
+        if maps.shape != shape:
+            raise ValueError(f"keyframe {len(self._times)}: heat-maps have shape {maps.shape}, "
+                             f"expected {shape}")
+        if maps.dtype != np.float32 or not maps.flags.c_contiguous:
+            maps = np.ascontiguousarray(maps, dtype=np.float32)
+        if not np.all(np.isfinite(maps)):
+            raise ValueError(f"keyframe {len(self._times)}: heat-maps contain NaN or inf")
+        return maps
+
+    def _window_flight(self) -> Flight:
+        meas = SE3(np.stack([p.wxyz_xyz for p in self._w_meas]))
+        return Flight(self.camera, np.asarray(self._w_time), meas, HeatmapStack(self._w_maps),
+                      TurbineParams.from_vector(self._theta))
+
+    def _fixed(self) -> NDArray[np.bool_]:
+        fixed = np.zeros(len(self._w_index), dtype=bool)
+        if self.config.fit.gauge == "first" and self._w_index[0] == 0:
+            fixed[0] = True
+        return fixed
+
+    def _window_prior(self, world_T_first: SE3) -> GaussianPrior | None:
+        """The marginal prior plus the start-up prior on theta. The latter acts on theta
+        alone, so eliminating poses passes it through unchanged: it is kept apart from the
+        marginal and added exactly here."""
+        m = self._marginal
+        if self._theta_sigma is None:
+            return m
+        if m is None:
+            return GaussianPrior.on_theta(world_T_first, self._theta0, self._theta_sigma)
+        info = 1.0 / self._theta_sigma**2
+        H = m.H.copy()
+        H[6:, 6:] += np.diag(info)
+        g = m.g.copy()
+        g[6:] += info * (m.theta - self._theta0)
+        return GaussianPrior(m.world_T_cam, m.theta, H, g)
+
+    def _run(self, flight: Flight, poses: SE3, stages: list[tuple[FitConfig, int, int]]
+             ) -> tuple[SE3, FitProblem, Linearization, int]:
+        """Rounds of LM on the window: ``stages`` of (config, rounds, iterations)."""
+        fixed = self._fixed()
+        theta = self._theta
+        iterations = 0
+        prob: FitProblem | None = None
+        lin: Linearization | None = None
+        for cfg, rounds, iters in stages:
+            prob = FitProblem(flight, cfg, fixed=fixed, prior=self._window_prior(poses[0]))
+            corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
+                    else Correspondences())
+            lin = prob.linearize(poses, theta, corr)
+            mu = cfg.initial_damping
+            for r in range(rounds):
+                out = levenberg_marquardt(prob, poses, theta, corr, lin, mu=mu,
+                                          max_iterations=iters)
+                poses, theta, lin = out.poses, out.theta, out.linearization
+                mu = max(out.mu, cfg.initial_damping)
+                iterations += out.iterations
+                if r == rounds - 1 or not prob.needs_correspondences:
+                    break
+                new = prob.find_correspondences(poses, theta)
+                flips, shift = corr_change(corr, new)
+                corr = new
+                lin = prob.linearize(poses, theta, corr)
+                if flips < 0.005 and shift < 0.25:
+                    break
+        assert prob is not None and lin is not None
+        self._theta = theta
+        return poses, prob, lin, iterations
+
+    def update(self, timestamp: float, world_T_cam: SE3,
+               heatmaps: NDArray[np.floating] | None = None, *,
+               image: NDArray[np.uint8] | None = None) -> TrackEstimate:
+        """Add one keyframe and refine; returns the estimate for it.
+
+        Args:
+            timestamp: keyframe time [s], later than the previous keyframe's.
+            world_T_cam: its GPS/IMU camera-to-world pose (the measurement).
+            heatmaps: (7, H, W) float32 heat-maps at the camera's size, or None with
+                ``image``.
+            image: the keyframe's image (H, W, 3) uint8, run through ``detector``.
+
+        Raises:
+            ValueError: on input that is out of order, of the wrong shape or not finite.
+        """
+        t0 = time.perf_counter()
+        if heatmaps is None:
+            if image is None or self.detector is None:
+                raise ValueError("update needs heat-maps, or an image and a detector")
+            heatmaps = self.detector(image)
+        maps = self._check(float(timestamp), world_T_cam, heatmaps)
+        index = len(self._times)
+        if self._w_est:
+            pred = _predict(self._w_est[-1], self._w_meas[-1], world_T_cam)
+        else:
+            pred = world_T_cam
+        self._times.append(float(timestamp))
+        self._final.append(None)
+        self._w_index.append(index)
+        self._w_time.append(float(timestamp))
+        self._w_meas.append(world_T_cam)
+        self._w_est.append(pred)
+        self._w_maps.append(maps)
+
+        cfg = self.config
+        flight = self._window_flight()
+        poses = SE3(np.stack([p.wxyz_xyz for p in self._w_est]))
+        stages = []
+        lost = bool(self.estimates) and sum(self.estimates[-1].in_view.values()) == 0
+        if cfg.match_rounds > 0 and (index < cfg.match_keyframes or lost):
+            stages.append((self._match_cfg, cfg.match_rounds, cfg.fit.warmup_iterations))
+        stages.append((self._refine_cfg, cfg.rounds, cfg.iterations))
+        poses, prob, lin, iterations = self._run(flight, poses, stages)
+        self._w_est = [poses[i] for i in range(len(poses))]
+        pose_cov, theta_cov = self._covariance(lin, len(poses) - 1)
+        self._maybe_release_prior(theta_cov)
+        estimate = TrackEstimate(
+            index=index, timestamp=float(timestamp), world_T_cam=poses[len(poses) - 1],
+            turbine=self.turbine, pose_covariance=pose_cov, theta_covariance=theta_cov,
+            cost=lin.cost, iterations=iterations, window=len(poses),
+            in_view=dict(lin.in_view), update_s=0.0)
+        if cfg.window is not None and len(self._w_index) >= cfg.window:
+            self._marginalize_oldest(flight, poses, prob)
+        estimate = dataclasses.replace(estimate, update_s=time.perf_counter() - t0)
+        self.estimates.append(estimate)
+        return estimate
+
+    @property
+    def theta_prior_active(self) -> bool:
+        """Whether the start-up prior on theta still acts."""
+        return self._theta_sigma is not None
+
+    def _maybe_release_prior(self, theta_cov: FloatArray | None) -> None:
+        """Drop the start-up prior once the data outweigh it (``theta_prior_release``)."""
+        ratio = self.config.theta_prior_release
+        sig = self._theta_sigma
+        if ratio is None or sig is None or theta_cov is None or not np.all(np.isfinite(theta_cov)):
+            return
+        try:
+            info = np.linalg.inv(theta_cov)
+        except np.linalg.LinAlgError:
+            return
+        data = sig[:, None] * info * sig[None, :] - np.eye(7)  # in units of the prior
+        if float(np.linalg.eigvalsh(0.5 * (data + data.T))[0]) >= ratio:
+            self._theta_sigma = None
+
+    def _covariance(self, lin: Linearization, index: int) -> tuple[FloatArray | None,
+                                                                    FloatArray | None]:
+        """Marginal covariances of window pose ``index`` and theta; None where the
+        information is singular (e.g. no start-up prior and one keyframe)."""
+        assert lin.D is not None and lin.B is not None
+        if self._fixed()[index]:
+            cov_t = None
+            if lin.E is not None:
+                try:
+                    cov_t = np.asarray(np.linalg.inv(lin.E), dtype=np.float64)
+                except np.linalg.LinAlgError:
+                    cov_t = None
+                if cov_t is not None and not np.all(np.isfinite(cov_t)):
+                    cov_t = None
+            return np.zeros((6, 6)), cov_t
+        try:
+            return arrow_covariance(lin.D, lin.B, lin.C, lin.E, index)
+        except np.linalg.LinAlgError:
+            return None, None
+
+    def _marginalize_oldest(self, flight: Flight, poses: SE3, prob: FitProblem) -> None:
+        """Fold the window's oldest keyframe into the prior and freeze its pose."""
+        fixed = self._fixed()
+        theta = self._theta
+        one = FitProblem(flight, self._refine_cfg, keyframes=np.array([0]),
+                         fixed=fixed[:1])
+        corr = (one.find_correspondences(poses[0:1], theta) if one.needs_correspondences
+                else Correspondences())
+        lin = one.linearize(poses[0:1], theta, corr)
+        assert lin.D is not None and lin.g_p is not None
+        has_next = len(poses) > 1
+        Ji = Jj = r = None
+        if has_next:
+            frames = None if prob.pair_frames is None else prob.pair_frames[0:1]
+            r, Ji, Jj = pairwise_residuals(poses[0:1], poses[1:2], prob.measured_rel[0:1],
+                                           prob.sqrt_info[0:1], True, frames)
+            assert Ji is not None and Jj is not None
+        try:
+            self._marginal, cond = marginalize_pose(
+                D=lin.D[0], C=None if lin.C is None else lin.C[0], E=lin.E,
+                g_p=lin.g_p[0], g_t=lin.g_t, fixed=bool(fixed[0]),
+                pair_Ji=None if Ji is None else Ji[0], pair_Jj=None if Jj is None else Jj[0],
+                pair_r=None if r is None else r[0], prior=self._marginal,
+                world_T_drop=poses[0], world_T_next=poses[1] if has_next else poses[0],
+                theta=theta)
+        except np.linalg.LinAlgError:
+            # keep the old prior: the keyframe's information is dropped, not corrupted
+            cond = None
+        self._conditionals.append(cond)
+        self._cond_priors.append(self._marginal if cond is not None else None)
+        self._final[self._w_index[0]] = self._w_est[0]
+        for lst in (self._w_index, self._w_time, self._w_meas, self._w_est, self._w_maps):
+            del lst[0]
+
+    def finish(self) -> TurbineParams:
+        """Converge the window (configured cost, ``finish_rounds`` x ``finish_iterations``);
+        with ``window=None`` this is the batch solve. Returns the turbine."""
+        if not self._w_est:
+            return self.turbine
+        cfg = self.config
+        flight = self._window_flight()
+        poses = SE3(np.stack([p.wxyz_xyz for p in self._w_est]))
+        poses, _, _, _ = self._run(flight, poses, [(self._refine_cfg, cfg.finish_rounds,
+                                                    cfg.finish_iterations)])
+        self._w_est = [poses[i] for i in range(len(poses))]
+        return self.turbine
