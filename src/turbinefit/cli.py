@@ -15,7 +15,7 @@ from typing import Any
 EXIT_BAD_INPUT = 2
 
 _EPILOG = """\
-Flight folder (input of fit, output of simulate):
+Flight folder (input of fit and track, output of simulate):
   camera.yaml                 ROS/OpenCV camera_info (image size, camera_matrix, plumb_bob)
   keyframes.txt               TUM 'timestamp tx ty tz qx qy qz qw', initial world_T_cam
   odometry.txt                optional TUM; its consecutive relative poses are the
@@ -131,44 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="named configuration: paper-best (default), all-interp, all-corr, "
                       "paper-worst, pose-only, turbine-only")
 
-    def opt(flag: str, name: str, help: str, **kw: Any) -> None:
-        f.add_argument(flag, dest=name, default=None,
-                       help=f"{help} (default: {getattr(dflt, name)})", **kw)
-
-    opt("--mode", "mode", "what to optimise", choices=["joint", "pose", "turbine"])
-    opt("--points", "points", "unary cost of the 6 model points",
-        choices=["interp", "corr", "none"])
-    opt("--lines", "lines", "unary cost of the line samples", choices=["interp", "corr", "none"])
-    opt("--samples-per-line", "samples_per_line", "samples on each model line",
-        type=_positive_int)
-    opt("--line-sampling", "line_sampling", "where line samples go: the visible part of each "
-        "line per keyframe, or uniform along it", choices=["visible", "uniform"])
-    opt("--lambda-points", "lambda_points", "weight lambda_P of the point term", type=_float)
-    opt("--lambda-lines", "lambda_lines", "weight lambda_L of the line term", type=_float)
-    opt("--lambda-pair", "lambda_pair", "weight lambda of the pairwise term", type=_float)
-    opt("--pixel-sigma", "pixel_sigma", "correspondence noise [px]", type=_float)
-    opt("--line-residual", "line_residual", "residual of line correspondences: 2-D distance to "
-        "the found point (the paper's) or distance along the search normal",
-        choices=["point", "normal"])
-    opt("--pair-frame", "pair_frame", "frame of the relative translation: measured (GPS/IMU "
-        "attitude: right for GPS positions) or estimated (the paper's: right for body-frame "
-        "odometry such as VIO)", choices=["measured", "estimated"])
-    opt("--pair-sigma-t", "pair_sigma_t", "relative-pose translation std. dev. [m]",
-        type=_float)
-    opt("--pair-sigma-t-per-m", "pair_sigma_t_per_m",
-        "added relative translation std. dev. per metre of step [m/m]", type=_float)
-    opt("--pair-sigma-r", "pair_sigma_r_deg", "relative-pose rotation std. dev. [deg]",
-        type=_float)
-    opt("--heatmap-floor", "heatmap_floor", "background floor eps of the -log heat-map cost",
-        type=_float)
-    opt("--robust", "robust", "robust loss on the image terms", choices=["none", "huber", "cauchy"])
-    opt("--robust-scale", "robust_scale", "robust loss scale (whitened units)", type=_float)
-    opt("--gauge", "gauge", "hold the first pose, or weak absolute GPS position priors",
-        choices=["first", "gps"])
-    opt("--gps-sigma", "gps_sigma", "std. dev. of the GPS priors [m]", type=_float)
-    opt("--max-iterations", "max_iterations", "LM iterations per round", type=_positive_int)
-    opt("--max-rounds", "max_rounds", "rounds (correspondences re-found after each)",
-        type=_positive_int)
+    _add_fit_options(f, dflt)
     f.add_argument("--no-warmup", dest="warmup", action="store_const", const=False,
                    default=None, help="skip the correspondence warm-up stages (align, match) "
                    "and start with the configured cost")
@@ -181,6 +144,54 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    # ---- track ------------------------------------------------------------------
+    from turbinefit.solver.tracker import TrackerConfig
+
+    tdf = TrackerConfig()
+    k = sub.add_parser(
+        "track", help="replay a flight keyframe by keyframe (in-flight tracking)",
+        description=(
+            "Successive estimation as the drone flies: keyframes are fed in time order to a\n"
+            "fixed-lag smoother that refines the last --window keyframe poses and the turbine\n"
+            "after each one and folds older keyframes into a prior (marginalisation). A live\n"
+            "status line shows the keyframe, its update time and the current turbine.\n\n"
+            "Writes OUT_DIR/causal.txt (TUM: each keyframe's estimate when it arrived),\n"
+            "keyframes.txt and turbine.yaml (the final estimates, as fit writes them),\n"
+            "latency.csv (timestamp,latency_ms), config.yaml, summary.json (latency figures;\n"
+            "errors of the causal and final estimates when ground truth exists) and plots\n"
+            "(latency.png, errors.png, scene.png). Fit options as for `turbinefit fit`."),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    k.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to replay")
+    k.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
+                   help="output folder (written atomically; never the input folder)")
+    k.add_argument("--window", type=_whole_nonneg, default=tdf.window, metavar="K",
+                   help=f"keyframes in the sliding window, >= 2; 0 keeps them all (the batch "
+                   f"problem, per-keyframe work grows) (default: {tdf.window})")
+    k.add_argument("--rounds", type=_positive_int, default=tdf.rounds,
+                   help=f"correspondence rounds per keyframe (default: {tdf.rounds})")
+    k.add_argument("--iterations", type=_positive_int, default=tdf.iterations,
+                   help=f"LM iterations per round (default: {tdf.iterations})")
+    k.add_argument("--no-prior", action="store_true",
+                   help="no start-up prior on the turbine (default: a prior around the initial "
+                   "turbine, removed once the images outweigh it)")
+    kbase = k.add_mutually_exclusive_group()
+    kbase.add_argument("--config", type=Path, default=None,
+                       help="YAML file of fit options (e.g. a fit run's config.yaml)")
+    kbase.add_argument("--preset", default=None,
+                       help="named fit configuration: paper-best (default), all-interp, "
+                       "all-corr, paper-worst, pose-only")
+    _add_fit_options(k, dflt)
+    k.add_argument("--from-images", action="store_true", default=None,
+                   help="detect each keyframe's heat-maps from images/ as it arrives, even if "
+                   "heatmaps/ exists (default: only when heatmaps/ is absent)")
+    k.add_argument("--model", type=Path, default=None,
+                   help="ONNX heat-map model for detection (default: the shipped one)")
+    k.add_argument("--no-plots", action="store_true", help="skip the figures")
+    k.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it exists (only if it holds nothing but track "
+                   "outputs)")
+    k.add_argument("--quiet", action="store_true", help="no status line or summary")
 
     # ---- detect -----------------------------------------------------------------
     d = sub.add_parser(
@@ -245,6 +256,48 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any) -> None:
+    """The options of :class:`FitConfig` that ``fit`` and ``track`` share."""
+    def opt(flag: str, name: str, help: str, **kw: Any) -> None:
+        parser.add_argument(flag, dest=name, default=None,
+                       help=f"{help} (default: {getattr(dflt, name)})", **kw)
+
+    opt("--mode", "mode", "what to optimise", choices=["joint", "pose", "turbine"])
+    opt("--points", "points", "unary cost of the 6 model points",
+        choices=["interp", "corr", "none"])
+    opt("--lines", "lines", "unary cost of the line samples", choices=["interp", "corr", "none"])
+    opt("--samples-per-line", "samples_per_line", "samples on each model line",
+        type=_positive_int)
+    opt("--line-sampling", "line_sampling", "where line samples go: the visible part of each "
+        "line per keyframe, or uniform along it", choices=["visible", "uniform"])
+    opt("--lambda-points", "lambda_points", "weight lambda_P of the point term", type=_float)
+    opt("--lambda-lines", "lambda_lines", "weight lambda_L of the line term", type=_float)
+    opt("--lambda-pair", "lambda_pair", "weight lambda of the pairwise term", type=_float)
+    opt("--pixel-sigma", "pixel_sigma", "correspondence noise [px]", type=_float)
+    opt("--line-residual", "line_residual", "residual of line correspondences: 2-D distance to "
+        "the found point (the paper's) or distance along the search normal",
+        choices=["point", "normal"])
+    opt("--pair-frame", "pair_frame", "frame of the relative translation: measured (GPS/IMU "
+        "attitude: right for GPS positions) or estimated (the paper's: right for body-frame "
+        "odometry such as VIO)", choices=["measured", "estimated"])
+    opt("--pair-sigma-t", "pair_sigma_t", "relative-pose translation std. dev. [m]",
+        type=_float)
+    opt("--pair-sigma-t-per-m", "pair_sigma_t_per_m",
+        "added relative translation std. dev. per metre of step [m/m]", type=_float)
+    opt("--pair-sigma-r", "pair_sigma_r_deg", "relative-pose rotation std. dev. [deg]",
+        type=_float)
+    opt("--heatmap-floor", "heatmap_floor", "background floor eps of the -log heat-map cost",
+        type=_float)
+    opt("--robust", "robust", "robust loss on the image terms", choices=["none", "huber", "cauchy"])
+    opt("--robust-scale", "robust_scale", "robust loss scale (whitened units)", type=_float)
+    opt("--gauge", "gauge", "hold the first pose, or weak absolute GPS position priors",
+        choices=["first", "gps"])
+    opt("--gps-sigma", "gps_sigma", "std. dev. of the GPS priors [m]", type=_float)
+    opt("--max-iterations", "max_iterations", "LM iterations per round", type=_positive_int)
+    opt("--max-rounds", "max_rounds", "rounds (correspondences re-found after each)",
+        type=_positive_int)
+
+
 def _whole_nonneg(text: str) -> int:
     return _whole_number(text, 0, "must be >= 0")
 
@@ -277,7 +330,7 @@ def _resolve_fit_config(args: argparse.Namespace) -> Any:
             raise InputError(f"unknown preset {args.preset!r} (choose from "
                              f"{', '.join(PRESETS)})", field="--preset")
         cfg = PRESETS[args.preset]
-    overrides = {k: getattr(args, k) for k in _FIT_OPTIONS if getattr(args, k) is not None}
+    overrides = {k: getattr(args, k) for k in _FIT_OPTIONS if getattr(args, k, None) is not None}
     try:
         return dataclasses.replace(cfg, **overrides)
     except ValueError as exc:
@@ -410,6 +463,70 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_track(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from turbinefit.errors import InputError
+    from turbinefit.pipeline import track_folder
+    from turbinefit.solver.tracker import TrackerConfig
+
+    fit_cfg = _resolve_fit_config(args)
+    if args.window == 1:
+        raise InputError("must be >= 2, or 0 to keep every keyframe", field="--window")
+    try:
+        cfg = TrackerConfig(fit=fit_cfg, window=args.window or None, rounds=args.rounds,
+                            iterations=args.iterations)
+        if args.no_prior:
+            cfg = dataclasses.replace(cfg, theta_sigma=None)
+    except ValueError as exc:
+        raise InputError(str(exc), field="track options") from None
+    bar = None
+    progress = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(desc="track", unit="kf", file=sys.stderr, dynamic_ncols=True, leave=False,
+                   disable=None)
+
+        def progress(est: Any, total: int) -> None:
+            assert bar is not None
+            if bar.total is None:
+                bar.reset(total=total)
+            th = est.turbine
+            bar.update(1)
+            bar.set_postfix_str(
+                f"{est.update_s * 1e3:5.1f} ms | base ({th.base_x:.2f}, {th.base_y:.2f}) "
+                f"tower {th.tower_height:.2f} heading {_deg(th.heading):.2f} "
+                f"rot {_deg(th.blade_rotation):.2f} blades {th.blade_length:.2f}", refresh=False)
+
+    try:
+        report = track_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
+                              overwrite=args.overwrite, progress=progress,
+                              config_path=args.config, from_images=args.from_images,
+                              model=args.model)
+    finally:
+        if bar is not None:
+            bar.close()
+    if not args.quiet:
+        lat = report.summary["latency"]
+        print(f"tracked {len(report.estimates)} keyframes: update median {lat['median_ms']:.1f} "
+              f"ms, 99th percentile {lat['p99_ms']:.1f} ms, max {lat['max_ms']:.1f} ms, trend "
+              f"{lat['slope_ms_per_1000_keyframes']:+.2f} ms per 1000 keyframes")
+        th = report.turbine
+        print(f"turbine: base ({th.base_x:.2f}, {th.base_y:.2f}) m, tower {th.tower_height:.2f} m, "
+              f"heading {_deg(th.heading):.2f} deg, nacelle {th.nacelle_length:.2f} m, "
+              f"blade rotation {_deg(th.blade_rotation):.2f} deg, blades {th.blade_length:.2f} m")
+        acc = report.summary.get("accuracy")
+        if acc is not None:
+            for key in ("initial", "causal", "final"):
+                a = acc[key]
+                print(f"{key:8s} position error {a['position_error_m']:7.3f} m, orientation "
+                      f"{a['orientation_error_deg']:6.3f} deg, model points "
+                      f"{a['model_point_error_m']:6.3f} m")
+        print(f"wrote {report.out_dir}")
+    return 0
+
+
 def _cmd_detect(args: argparse.Namespace) -> int:
     from turbinefit.pipeline import detect_images
 
@@ -453,6 +570,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_fit(args)
         if args.command == "simulate":
             return _cmd_simulate(args)
+        if args.command == "track":
+            return _cmd_track(args)
         if args.command == "detect":
             return _cmd_detect(args)
         if args.command == "train":

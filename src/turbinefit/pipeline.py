@@ -45,7 +45,8 @@ from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
-from turbinefit.turbine.model import TurbineGeometry
+from turbinefit.solver.tracker import KeyframeError, TrackerConfig, TrackEstimate
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams
 
 #: Everything ``fit`` writes into its output folder: all that ``fit --overwrite`` replaces.
 FIT_ENTRIES = frozenset({"keyframes.txt", "turbine.yaml", "config.yaml", "summary.json",
@@ -468,6 +469,236 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
             except OSError as e:
                 raise InputError(f"cannot write: {e.strerror or e}", path=out / p.stem) from e
     return DetectReport(out, len(paths), time.perf_counter() - t0, t_det)
+
+
+#: Everything ``track`` writes into its output folder: all that ``track --overwrite`` replaces.
+TRACK_ENTRIES = frozenset({"causal.txt", "keyframes.txt", "turbine.yaml", "latency.csv",
+                           "latency.png", "config.yaml", "summary.json", "scene.png",
+                           "errors.png"})
+
+
+def _only_track_outputs(folder: Path) -> str | None:
+    for entry in folder.iterdir():
+        if entry.name not in TRACK_ENTRIES or entry.is_dir():
+            return f"{entry.name!r} is not an output of turbinefit track"
+    return None
+
+
+@dataclass
+class TrackReport:
+    """What :func:`track_folder` did.
+
+    Attributes:
+        out_dir: where the outputs were written.
+        estimates: the tracker's answer to each keyframe, in time order.
+        world_T_cam: (N,) final estimates (window at its last, earlier keyframes moved
+            with it by back-substitution).
+        turbine: the final turbine.
+        latency_ms: (N,) wall time of each keyframe's update [ms].
+        causal, final: accuracy of the causal and final estimates (None without ground
+            truth); ``batch`` is not run here (see ``benchmarks/bench_track.py``).
+        summary: the dictionary written to ``summary.json``.
+    """
+
+    out_dir: Path
+    estimates: list[TrackEstimate]
+    world_T_cam: Any
+    turbine: Any
+    latency_ms: np.ndarray
+    causal: Accuracy | None
+    final: Accuracy | None
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def latency_stats(latency_ms: np.ndarray) -> dict[str, float]:
+    """Median, 90th / 99th percentile, max [ms] and the slope of a least-squares line
+    through latency against keyframe index [ms per 1000 keyframes]."""
+    lat = np.asarray(latency_ms, dtype=np.float64)
+    if lat.size == 0:
+        return {}
+    idx = np.arange(lat.size, dtype=np.float64)
+    slope = float(np.polyfit(idx, lat, 1)[0]) * 1000.0 if lat.size > 1 else 0.0
+    return {"median_ms": float(np.median(lat)), "p90_ms": float(np.percentile(lat, 90)),
+            "p99_ms": float(np.percentile(lat, 99)), "max_ms": float(lat.max()),
+            "mean_ms": float(lat.mean()), "slope_ms_per_1000_keyframes": slope}
+
+
+def track_folder(
+    flight_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    config: TrackerConfig | None = None,
+    *,
+    plots: bool = True,
+    overwrite: bool = False,
+    progress: Callable[[TrackEstimate, int], None] | None = None,
+    config_path: str | os.PathLike[str] | None = None,
+    from_images: bool | None = None,
+    model: str | os.PathLike[str] | None = None,
+) -> TrackReport:
+    """Replay the flight in ``flight_dir`` keyframe by keyframe through a :class:`Tracker`.
+
+    Writes into ``out_dir`` (atomically, checked as :func:`fit_folder` checks it):
+    ``causal.txt`` (TUM: each keyframe's estimate when it arrived), ``keyframes.txt`` and
+    ``turbine.yaml`` (the final estimates, as ``fit`` writes them), ``latency.csv``
+    (``timestamp,latency_ms``: wall time of each update), ``config.yaml``,
+    ``summary.json`` (latency figures, accuracy of the causal and final estimates with
+    ground truth) and, unless ``plots=False``, ``latency.png``, ``errors.png`` (with
+    ground truth) and ``scene.png``.
+
+    With photos (``images/`` and no ``heatmaps/``, or ``from_images``) each keyframe's photo
+    is read and run through the CNN as it arrives, inside the update (its latency includes
+    detection). ``progress(estimate, total)`` is called after every keyframe.
+    """
+    from turbinefit.solver.tracker import Tracker
+
+    cfg = config or TrackerConfig()
+    flight_dir = Path(flight_dir)
+    out = Path(out_dir)
+    _check_out_dir(out, [flight_dir] + ([] if config_path is None else [Path(config_path)]))
+    check_output_dir(out, overwrite, _only_track_outputs, _OVERWRITE_HINT)
+    if from_images is None:
+        from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
+    photos: list[Path] = []
+    detector: Callable[[np.ndarray], np.ndarray] | None = None
+    if from_images:
+        flight, photos, detector = _photo_flight(flight_dir, model)
+    else:
+        flight = read_flight(flight_dir)
+    tracker = Tracker(flight.camera, flight.turbine, cfg, detector=detector)
+    n = flight.num_keyframes
+    for k in range(n):
+        try:
+            if photos:
+                from turbinefit.io.images import read_image
+
+                img = read_image(photos[k])
+                est = tracker.update(flight.timestamps[k], flight.world_T_cam[k], image=img)
+            else:
+                est = tracker.update(flight.timestamps[k], flight.world_T_cam[k],
+                                     flight.heatmaps[k])
+        except KeyframeError as exc:
+            where = (photos[k] if photos else
+                     flight_dir / HEATMAP_DIR / heatmap_filename(flight.timestamps[k]))
+            raise InputError(exc.reason, where) from None
+        if progress is not None:
+            progress(est, n)
+    final_poses = tracker.world_T_cam()
+    causal_poses = tracker.causal_world_T_cam()
+    turbine = tracker.turbine
+    latency = np.array([e.update_s * 1e3 for e in tracker.estimates])
+    causal = final = before = None
+    geometry = cfg.fit.geometry
+    if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
+        before = accuracy(flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
+                          flight.gt_turbine, geometry)
+        causal = accuracy(causal_poses, turbine, flight.gt_world_T_cam, flight.gt_turbine,
+                          geometry)
+        final = accuracy(final_poses, turbine, flight.gt_world_T_cam, flight.gt_turbine,
+                         geometry)
+    cfg_dict = {"turbinefit_version": __version__, **tracker_config_dict(cfg)}
+    summary: dict[str, Any] = {
+        "turbinefit_version": __version__,
+        "flight": str(flight_dir),
+        "num_keyframes": n,
+        "heatmap_size": [flight.camera.width, flight.camera.height],
+        "heatmaps": (f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'} "
+                     "(inside each update)" if from_images else "heatmaps/"),
+        "config": _plain(tracker_config_dict(cfg)),
+        "latency": latency_stats(latency),
+        "iterations_mean": float(np.mean([e.iterations for e in tracker.estimates])),
+        "theta_prior_active_at_end": tracker.theta_prior_active,
+        "turbine": {"initial": flight.turbine.to_dict(), "final": turbine.to_dict()},
+    }
+    last = tracker.estimates[-1]
+    if last.theta_covariance is not None:
+        summary["turbine"]["final_sigma"] = dict(zip(
+            TurbineParams.NAMES, np.sqrt(np.diag(last.theta_covariance)).tolist(), strict=True))
+    if before is not None and causal is not None and final is not None:
+        summary["accuracy"] = {"initial": before.to_dict(), "causal": causal.to_dict(),
+                               "final": final.to_dict()}
+    with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_track_outputs) as tmp:
+        write_tum(tmp / "causal.txt", flight.timestamps, causal_poses,
+                  comment="turbinefit track: each keyframe's estimate when it arrived")
+        write_tum(tmp / "keyframes.txt", flight.timestamps, final_poses)
+        write_turbine_yaml(tmp / "turbine.yaml", turbine,
+                           comment="turbinefit: fitted turbine parameters (metres, radians)")
+        rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(flight.timestamps, latency,
+                                                               strict=True))
+        write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)
+        write_text_atomic(tmp / "config.yaml", yaml.safe_dump(_plain(cfg_dict), sort_keys=False),
+                          fsync=False)
+        write_text_atomic(tmp / "summary.json", json.dumps(summary, indent=2) + "\n",
+                          fsync=False)
+        if plots:
+            try:
+                _track_plots(tmp, flight, final_poses, causal_poses, turbine, latency, geometry)
+            except OSError as exc:
+                raise InputError(f"cannot write the plots: {exc.strerror or exc}", out) from exc
+    return TrackReport(out, list(tracker.estimates), final_poses, turbine, latency, causal,
+                       final, summary)
+
+
+def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:
+    """The tracker options as a plain mapping (``fit`` nested as :meth:`FitConfig.to_dict`)."""
+    d = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "fit"}
+    return {"tracker": _plain(d), "fit": cfg.fit.to_dict()}
+
+
+def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
+                  ) -> tuple[Flight, list[Path], Callable[[np.ndarray], np.ndarray]]:
+    """The flight with its photos in place of heat-maps: the photos' paths, checked, and a
+    detector making heat-maps at the fit's working size (see :func:`image_heatmap_source`).
+    The flight's own heat-map stack is an empty placeholder."""
+    from turbinefit.detect import HeatmapDetector
+    from turbinefit.heatmaps import HeatmapStack
+    from turbinefit.io.images import check_image
+
+    found: dict[str, Any] = {}
+
+    def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
+        paths = keyframe_images(flight_dir, timestamps)
+        for p in paths:  # headers only, before any work
+            check_image(p)
+        cam = camera
+        if camera.width > FIT_DETECT_WIDTH:
+            cam = camera.resized(FIT_DETECT_WIDTH, max(1, round(
+                camera.height * FIT_DETECT_WIDTH / camera.width)))
+        found.update(paths=paths, camera=camera, cam=cam)
+        blank = np.zeros((7, cam.height, cam.width), dtype=np.float32)
+        return cam, HeatmapStack([blank] * len(paths))
+
+    flight = read_flight(flight_dir, heatmaps=source)
+    detector = HeatmapDetector(model)
+    camera, cam, paths = found["camera"], found["cam"], found["paths"]
+
+    def detect(img: np.ndarray) -> np.ndarray:
+        if img.shape[:2] != (camera.height, camera.width):
+            raise KeyframeError(-1, f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml "
+                                f"is {camera.width}x{camera.height}")
+        return detector.detect(img, size=(cam.width, cam.height))
+
+    return flight, paths, detect
+
+
+def _track_plots(out: Path, flight: Flight, final_poses: Any, causal_poses: Any,
+                 turbine: Any, latency: np.ndarray, geometry: TurbineGeometry) -> None:
+    from turbinefit import plots
+    from turbinefit.geometry.se3 import pose_errors
+
+    plots.plot_latency(out / "latency.png", latency)
+    plots.plot_scene(
+        out / "scene.png", initial_poses=flight.world_T_cam, optimised_poses=final_poses,
+        initial_turbine=flight.turbine, optimised_turbine=turbine,
+        gt_poses=flight.gt_world_T_cam, gt_turbine=flight.gt_turbine, geometry=geometry)
+    if flight.gt_world_T_cam is not None:
+        p0, r0 = pose_errors(flight.world_T_cam, flight.gt_world_T_cam)
+        p1, r1 = pose_errors(final_poses, flight.gt_world_T_cam)
+        pc, rc = pose_errors(causal_poses, flight.gt_world_T_cam)
+        plots.plot_errors(out / "errors.png", timestamps=flight.timestamps,
+                          initial_pos_err=p0, optimised_pos_err=p1,
+                          initial_rot_err_deg=np.degrees(r0),
+                          optimised_rot_err_deg=np.degrees(r1),
+                          causal_pos_err=pc, causal_rot_err_deg=np.degrees(rc))
 
 
 def _plain(obj: Any) -> Any:

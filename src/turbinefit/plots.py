@@ -10,6 +10,7 @@ Every function writes one PNG and returns its path:
   optimised (green) estimate.
 * :func:`plot_errors` -- per-keyframe position / orientation error, initial vs optimised.
 * :func:`plot_cost_history` -- the LM cost per iteration (log scale).
+* :func:`plot_latency` -- the tracker's per-keyframe update time.
 
 Conventions: poses are ``world_T_cam`` (camera-to-world) :class:`~turbinefit.geometry.se3.SE3`
 batches, the camera frame is OpenCV (x right, y down, z forward), world units are metres.
@@ -55,6 +56,7 @@ DPI = 150
 GT_COLOUR = "#2ca02c"  # ground truth: green
 INITIAL_COLOUR = "#d62728"  # initial estimate: red
 OPTIMISED_COLOUR = "#1f77b4"  # optimised estimate: blue (scene figure)
+CAUSAL_COLOUR = "#ff7f0e"  # tracker's estimate on arrival: orange
 REPROJ_INITIAL_COLOUR = "#ff2a2a"  # initial estimate over heat-maps: bright red
 REPROJ_OPTIMISED_COLOUR = "#39ff14"  # optimised estimate over heat-maps: bright green
 #: Samples per 3-D line when projecting the skeleton (end points included).
@@ -460,9 +462,12 @@ def plot_errors(
     optimised_pos_err: ArrayLike,
     initial_rot_err_deg: ArrayLike,
     optimised_rot_err_deg: ArrayLike,
+    causal_pos_err: ArrayLike | None = None,
+    causal_rot_err_deg: ArrayLike | None = None,
 ) -> Path:
     """Per-keyframe position error [m] (top) and orientation error [deg] (bottom), initial
-    (red) vs optimised (blue), the means in the legend.
+    (red) vs optimised (blue), the means in the legend; with ``causal_*`` (the tracker's
+    estimate of each keyframe when it arrived) also those, in orange.
 
     Args:
         path: output PNG.
@@ -476,6 +481,7 @@ def plot_errors(
     """
     series = [_series(v) for v in (initial_pos_err, optimised_pos_err, initial_rot_err_deg,
                                    optimised_rot_err_deg)]
+    causal = [_series(causal_pos_err), _series(causal_rot_err_deg)]
     n = max(s.size for s in series)
     t = _series(timestamps)
     if t.size >= n and n > 0 and np.all(np.isfinite(t[:n])):
@@ -488,12 +494,15 @@ def plot_errors(
     fig = _new_figure(9.0, 6.0)
     ax_p = fig.add_subplot(2, 1, 1)
     ax_r = fig.add_subplot(2, 1, 2, sharex=ax_p)
-    for ax, (ini, opt), unit, ylabel in (
-        (ax_p, series[:2], "m", "position error [m]"),
-        (ax_r, series[2:], "deg", "orientation error [deg]"),
+    for ax, (ini, opt), cau, unit, ylabel in (
+        (ax_p, series[:2], causal[0], "m", "position error [m]"),
+        (ax_r, series[2:], causal[1], "deg", "orientation error [deg]"),
     ):
-        for v, name, colour in ((ini, "initial", INITIAL_COLOUR),
-                                (opt, "optimised", OPTIMISED_COLOUR)):
+        lines = [(ini, "initial", INITIAL_COLOUR)]
+        if cau.size:
+            lines.append((cau, "causal (on arrival)", CAUSAL_COLOUR))
+        lines.append((opt, "final" if cau.size else "optimised", OPTIMISED_COLOUR))
+        for v, name, colour in lines:
             ax.plot(x[: v.size], v, color=colour, lw=1.4, marker="." if v.size <= 60 else None,
                     label=_mean_label(name, v, unit))
         ax.set_ylabel(ylabel)
@@ -502,7 +511,8 @@ def plot_errors(
         ax.legend(loc="upper left", fontsize=8.5)
     ax_p.tick_params(labelbottom=False)
     ax_r.set_xlabel(xlabel)
-    ax_p.set_title("Per-keyframe pose error: initial vs optimised", fontsize=11)
+    ax_p.set_title("Per-keyframe pose error: initial vs " + (
+        "tracked" if causal[0].size else "optimised"), fontsize=11)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -553,5 +563,42 @@ def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[floa
         from matplotlib.ticker import MaxNLocator
 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_latency(path: str | os.PathLike[str], latency_ms: ArrayLike,
+                 budget_ms: float | None = None) -> Path:
+    """The tracker's update time per keyframe [ms] against the keyframe index, with the
+    median, the 99th percentile and a least-squares line (its slope in the legend, in ms
+    per 1000 keyframes: flat means per-keyframe work does not grow with the flight);
+    ``budget_ms`` draws a limit line.
+
+    Returns:
+        ``Path(path)``.
+    """
+    lat = _series(latency_ms)
+    fig = _new_figure(8.0, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    idx = np.arange(lat.size, dtype=np.float64)
+    ok = np.isfinite(lat)
+    ax.plot(idx[ok], lat[ok], ".", ms=2.5, color=OPTIMISED_COLOUR, alpha=0.6,
+            label="update time")
+    if np.count_nonzero(ok) >= 2:
+        med = float(np.median(lat[ok]))
+        p99 = float(np.percentile(lat[ok], 99))
+        a, b = np.polyfit(idx[ok], lat[ok], 1)
+        ax.axhline(med, color="k", lw=1.0, label=f"median {med:.1f} ms")
+        ax.axhline(p99, color="0.4", lw=1.0, ls="--", label=f"99th percentile {p99:.1f} ms")
+        ax.plot(idx[ok], a * idx[ok] + b, color=CAUSAL_COLOUR, lw=1.5,
+                label=f"trend {a * 1000:+.2f} ms / 1000 keyframes")
+    if budget_ms is not None:
+        ax.axhline(budget_ms, color=INITIAL_COLOUR, lw=1.0, ls=":", label=f"{budget_ms:g} ms")
+    ax.set_xlabel("keyframe")
+    ax.set_ylabel("update time [ms]")
+    ax.set_ylim(bottom=0.0)
+    ax.grid(True, color="0.9", lw=0.6)
+    ax.legend(loc="upper right", fontsize=8.5)
+    ax.set_title(f"Tracker latency per keyframe ({lat.size} keyframes)", fontsize=11)
     fig.tight_layout()
     return _save(fig, path)

@@ -123,12 +123,17 @@ class FitProblem:
             config: the first with ``gauge="first"``, all with ``mode="turbine"``).
         prior: a Gaussian prior on the first used keyframe's pose and theta (what
             marginalised keyframes left behind, see :mod:`turbinefit.solver.marginal`).
+        evidence: (len(keyframes),) False for keyframes whose heat-maps show nothing
+            (no detection at all): their image terms are left out, since the interp cost
+            of an empty heat-map is lower outside the image than inside and would push
+            the turbine out of their view. Default: all True.
     """
 
     def __init__(self, flight: Flight, config: FitConfig,
                  keyframes: NDArray[np.int_] | None = None, *,
                  fixed: NDArray[np.bool_] | None = None,
-                 prior: GaussianPrior | None = None) -> None:
+                 prior: GaussianPrior | None = None,
+                 evidence: NDArray[np.bool_] | None = None) -> None:
         self.flight = flight
         self.config = config
         self.keyframes = (np.arange(flight.num_keyframes) if keyframes is None
@@ -169,6 +174,10 @@ class FitProblem:
         elif config.gauge == "first":
             self.fixed[0] = True
         self.prior = prior
+        self.evidence = None if evidence is None else np.asarray(evidence, dtype=bool).copy()
+        if self.evidence is not None and self.evidence.shape != (self.num_keyframes,):
+            raise ValueError(f"evidence has shape {self.evidence.shape}, expected "
+                             f"({self.num_keyframes},)")
         self.optimise_theta = config.mode in ("joint", "turbine")
         #: whether rounds need find_correspondences (corr terms or visible-part sampling)
         self.needs_correspondences = "corr" in (config.points, config.lines) or (
@@ -251,7 +260,7 @@ class FitProblem:
         return out
 
     # ------------------------------------------------------------------------------
-    def _image_block(self, kind: str, smp: Samples,
+    def _image_block(self, keyframes: NDArray[np.int_], kind: str, smp: Samples,
                      channels: NDArray[np.int_], lam: float, poses: SE3,
                      target: FloatArray | None, found: NDArray[np.bool_] | None,
                      normal: FloatArray | None,
@@ -269,7 +278,7 @@ class FitProblem:
         g: FloatArray | None = None
         H: FloatArray | None = None
         if kind == "interp":
-            ht = heatmap_terms(self.flight.heatmaps, self.keyframes, channels, pr, lam,
+            ht = heatmap_terms(self.flight.heatmaps, keyframes, channels, pr, lam,
                                cfg.border_margin, cfg.heatmap_floor, with_jacobian)
             s, g, H = ht.s, ht.g, ht.H
             n_in = int(pr.inside.sum())
@@ -301,7 +310,8 @@ class FitProblem:
             H = H * drho[..., None, None]
         return cost, n_in, (g, H, pr.J)
 
-    def _image_block_native(self, maps: NDArray[np.uint64], kind: str, smp: Samples,
+    def _image_block_native(self, maps: NDArray[np.uint64], keyframes: NDArray[np.int_],
+                            kind: str, smp: Samples,
                             channels: NDArray[np.int_], lam: float, poses: SE3,
                             target: FloatArray | None, found: NDArray[np.bool_] | None,
                             normal: FloatArray | None, JtHJ: FloatArray | None,
@@ -312,7 +322,7 @@ class FitProblem:
         cam = self.flight.camera
         cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
-            smp.JA, smp.JB, smp.f, channels, maps, self.keyframes, kind, target, found, normal, lam,
+            smp.JA, smp.JB, smp.f, channels, maps, keyframes, kind, target, found, normal, lam,
             cfg.pixel_sigma, cfg.border_margin, cfg.heatmap_floor, cfg.robust,
             cfg.robust_scale, JtHJ is not None, JtHJ, g)
         return float(cost.sum()), int(count.sum())
@@ -334,29 +344,52 @@ class FitProblem:
         N = self.num_keyframes
         JtHJ = np.zeros((N, 13, 13)) if with_jacobian else None
         g_u = np.zeros((N, 13)) if with_jacobian else None
+        # the keyframes with image evidence (all, or a subset whose blocks are scattered)
+        sel = (None if self.evidence is None or self.evidence.all()
+               else np.flatnonzero(self.evidence))
+        n_img = N if sel is None else int(sel.size)
+        kf_img = self.keyframes if sel is None else self.keyframes[sel]
+        poses_img = poses if sel is None else poses[sel]
+        JtHJ_img = JtHJ if sel is None or JtHJ is None else np.zeros((n_img, 13, 13))
+        g_img = g_u if sel is None or g_u is None else np.zeros((n_img, 13))
+
+        def rows(a: FloatArray | None) -> FloatArray | None:
+            return a if a is None or sel is None else a[sel]
+
         n_res = 0
         maps = self.flight.heatmaps.pointers() if _native.available() else None
         for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
+            if n_img == 0:
+                terms[name], in_view[name] = 0.0, 0
+                continue
             # residuals per point: 2 for a 2-D correspondence, 1 otherwise
-            n_res += N * smp.A.shape[0] * (2 if kind == "corr" and nrm is None else 1)
+            n_res += n_img * smp.A.shape[0] * (2 if kind == "corr" and nrm is None else 1)
+            if sel is not None:
+                smp = Samples(smp.A, smp.B, smp.JA, smp.JB, rows(smp.f))
+                tgt, nrm = rows(tgt), rows(nrm)
+                fnd = None if fnd is None else fnd[sel]
             if maps is not None:
                 terms[name], in_view[name] = self._image_block_native(
-                    maps, kind, smp, ch, lam, poses, tgt, fnd, nrm, JtHJ, g_u)
+                    maps, kf_img, kind, smp, ch, lam, poses_img, tgt, fnd, nrm, JtHJ_img,
+                    g_img)
                 continue
-            c, n_in, der = self._image_block(kind, smp, ch, lam, poses, tgt, fnd, nrm,
-                                             with_jacobian)
+            c, n_in, der = self._image_block(kf_img, kind, smp, ch, lam, poses_img, tgt, fnd,
+                                             nrm, with_jacobian)
             terms[name] = c
             in_view[name] = n_in
             if der is not None:
-                assert JtHJ is not None and g_u is not None
+                assert JtHJ_img is not None and g_img is not None
                 g, H, J = der
-                Jf = J.reshape(N, -1, 13)
-                HJ = (H @ J).reshape(N, -1, 13)
-                JtHJ += np.swapaxes(Jf, 1, 2) @ HJ
-                g_u += np.einsum("nri,nr->ni", Jf, g.reshape(N, -1))
-        N = self.num_keyframes
+                Jf = J.reshape(n_img, -1, 13)
+                HJ = (H @ J).reshape(n_img, -1, 13)
+                JtHJ_img += np.swapaxes(Jf, 1, 2) @ HJ
+                g_img += np.einsum("nri,nr->ni", Jf, g.reshape(n_img, -1))
+        if sel is not None and JtHJ is not None and g_u is not None:
+            assert JtHJ_img is not None and g_img is not None
+            JtHJ[sel] = JtHJ_img
+            g_u[sel] = g_img
         want_pair = N > 1 and cfg.lambda_pair > 0
         if want_pair:
             rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self.measured_rel,

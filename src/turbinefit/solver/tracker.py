@@ -145,7 +145,10 @@ class TrackEstimate:
         cost: the window's cost after the update.
         iterations: LM iterations spent.
         window: keyframes in the window during the update.
-        in_view: model points and line samples projected into the image, by term.
+        in_view: model points and line samples projected into the image, by term (of
+            keyframes with evidence).
+        evidence: whether the keyframe's heat-maps showed anything (a value of at least
+            ``fit.corr_threshold``); without, its image terms are left out.
         update_s: wall time of the update [s].
     """
 
@@ -159,6 +162,7 @@ class TrackEstimate:
     iterations: int
     window: int
     in_view: dict[str, int]
+    evidence: bool
     update_s: float
 
     def position_sigma_m(self) -> float | None:
@@ -166,6 +170,16 @@ class TrackEstimate:
         if self.pose_covariance is None:
             return None
         return float(math.sqrt(max(float(np.trace(self.pose_covariance[:3, :3])), 0.0) / 3.0))
+
+
+class KeyframeError(ValueError):
+    """An input keyframe is unusable (out of order, wrong shape, not finite); ``index``
+    is its number in arrival order. The tracker's state is unchanged."""
+
+    def __init__(self, index: int, message: str) -> None:
+        super().__init__(f"keyframe {index}: {message}")
+        self.index = index
+        self.reason = message
 
 
 def _predict(world_T_prev: SE3, meas_prev: SE3, meas_new: SE3) -> SE3:
@@ -212,6 +226,7 @@ class Tracker:
         self._w_meas: list[SE3] = []
         self._w_est: list[SE3] = []
         self._w_maps: list[NDArray[np.floating]] = []
+        self._w_evidence: list[bool] = []
         #: what marginalised keyframes left: a prior on the window's first pose and theta
         self._marginal: GaussianPrior | None = None
         #: per marginalised keyframe: its conditional and the prior its elimination made
@@ -261,22 +276,22 @@ class Tracker:
     # ------------------------------------------------------------------------------
     def _check(self, timestamp: float, world_T_cam: SE3,
                heatmaps: NDArray[np.floating]) -> NDArray[np.floating]:
+        k = len(self._times)
         if not math.isfinite(timestamp):
-            raise ValueError(f"keyframe {len(self._times)}: timestamp is not finite")
+            raise KeyframeError(k, "timestamp is not finite")
         if self._times and timestamp <= self._times[-1]:
-            raise ValueError(f"keyframe {len(self._times)}: timestamp {timestamp!r} is not "
-                             f"after the previous one ({self._times[-1]!r})")
+            raise KeyframeError(k, f"timestamp {timestamp!r} is not after the previous one "
+                                f"({self._times[-1]!r})")
         if world_T_cam.batch_shape != () or not np.all(np.isfinite(world_T_cam.wxyz_xyz)):
-            raise ValueError(f"keyframe {len(self._times)}: pose must be one finite SE3")
+            raise KeyframeError(k, "pose must be one finite SE3")
         maps = np.asarray(heatmaps)
         shape = (NUM_CHANNELS, self.camera.height, self.camera.width)
         if maps.shape != shape:
-            raise ValueError(f"keyframe {len(self._times)}: heat-maps have shape {maps.shape}, "
-                             f"expected {shape}")
+            raise KeyframeError(k, f"heat-maps have shape {maps.shape}, expected {shape}")
         if maps.dtype != np.float32 or not maps.flags.c_contiguous:
             maps = np.ascontiguousarray(maps, dtype=np.float32)
-        if not np.all(np.isfinite(maps)):
-            raise ValueError(f"keyframe {len(self._times)}: heat-maps contain NaN or inf")
+        if not math.isfinite(float(maps.sum(dtype=np.float64))):  # float64: cannot overflow
+            raise KeyframeError(k, "heat-maps contain NaN or inf")
         return maps
 
     def _window_flight(self) -> Flight:
@@ -315,7 +330,8 @@ class Tracker:
         prob: FitProblem | None = None
         lin: Linearization | None = None
         for cfg, rounds, iters in stages:
-            prob = FitProblem(flight, cfg, fixed=fixed, prior=self._window_prior(poses[0]))
+            prob = FitProblem(flight, cfg, fixed=fixed, prior=self._window_prior(poses[0]),
+                              evidence=np.array(self._w_evidence))
             corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
                     else Correspondences())
             lin = prob.linearize(poses, theta, corr)
@@ -351,12 +367,14 @@ class Tracker:
             image: the keyframe's image (H, W, 3) uint8, run through ``detector``.
 
         Raises:
-            ValueError: on input that is out of order, of the wrong shape or not finite.
+            KeyframeError: on input that is out of order, of the wrong shape or not finite
+                (nothing is changed).
         """
         t0 = time.perf_counter()
         if heatmaps is None:
             if image is None or self.detector is None:
-                raise ValueError("update needs heat-maps, or an image and a detector")
+                raise KeyframeError(len(self._times),
+                                    "update needs heat-maps, or an image and a detector")
             heatmaps = self.detector(image)
         maps = self._check(float(timestamp), world_T_cam, heatmaps)
         index = len(self._times)
@@ -371,12 +389,14 @@ class Tracker:
         self._w_meas.append(world_T_cam)
         self._w_est.append(pred)
         self._w_maps.append(maps)
+        evidence = float(maps.max()) >= self.config.fit.corr_threshold
+        self._w_evidence.append(evidence)
 
         cfg = self.config
         flight = self._window_flight()
         poses = SE3(np.stack([p.wxyz_xyz for p in self._w_est]))
         stages = []
-        lost = bool(self.estimates) and sum(self.estimates[-1].in_view.values()) == 0
+        lost = bool(self.estimates) and not self.estimates[-1].evidence
         if cfg.match_rounds > 0 and (index < cfg.match_keyframes or lost):
             stages.append((self._match_cfg, cfg.match_rounds, cfg.fit.warmup_iterations))
         stages.append((self._refine_cfg, cfg.rounds, cfg.iterations))
@@ -388,7 +408,7 @@ class Tracker:
             index=index, timestamp=float(timestamp), world_T_cam=poses[len(poses) - 1],
             turbine=self.turbine, pose_covariance=pose_cov, theta_covariance=theta_cov,
             cost=lin.cost, iterations=iterations, window=len(poses),
-            in_view=dict(lin.in_view), update_s=0.0)
+            in_view=dict(lin.in_view), evidence=evidence, update_s=0.0)
         if cfg.window is not None and len(self._w_index) >= cfg.window:
             self._marginalize_oldest(flight, poses, prob)
         estimate = dataclasses.replace(estimate, update_s=time.perf_counter() - t0)
@@ -439,7 +459,7 @@ class Tracker:
         fixed = self._fixed()
         theta = self._theta
         one = FitProblem(flight, self._refine_cfg, keyframes=np.array([0]),
-                         fixed=fixed[:1])
+                         fixed=fixed[:1], evidence=np.array(self._w_evidence[:1]))
         corr = (one.find_correspondences(poses[0:1], theta) if one.needs_correspondences
                 else Correspondences())
         lin = one.linearize(poses[0:1], theta, corr)
@@ -465,7 +485,8 @@ class Tracker:
         self._conditionals.append(cond)
         self._cond_priors.append(self._marginal if cond is not None else None)
         self._final[self._w_index[0]] = self._w_est[0]
-        for lst in (self._w_index, self._w_time, self._w_meas, self._w_est, self._w_maps):
+        for lst in (self._w_index, self._w_time, self._w_meas, self._w_est, self._w_maps,
+                    self._w_evidence):
             del lst[0]
 
     def finish(self) -> TurbineParams:
