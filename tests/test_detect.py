@@ -199,6 +199,28 @@ def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.Captur
     assert not (tmp_path / "fit2").exists()
 
 
+def test_track_from_photos_detects_inside_each_update(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    flight = tmp_path / "flight"
+    assert main(["simulate", str(flight), "--keyframes", "6", "--seed", "2", "--width", "160",
+                 "--height", "120", "--images", "--quiet"]) == 0
+    shutil.rmtree(flight / "heatmaps")
+    out = tmp_path / "track"
+    assert main(["track", str(flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["heatmaps"].startswith("detected from images/")
+    assert summary["num_keyframes"] == 6
+    assert not (flight / "heatmaps").exists()
+    # a photo of the wrong size: one clear error naming it, nothing written
+    photo = flight / "images" / "3.000000.png"
+    write_png(photo, np.zeros((60, 80, 3), np.uint8))
+    assert main(["track", str(flight), "--out", str(tmp_path / "t2"), "--quiet"]) == 2
+    _one_line_error(capsys, "3.000000.png", "80x60", "camera.yaml")
+    assert not (tmp_path / "t2").exists()
+
+
 def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
     from turbinefit.io.flight_folder import read_flight
     from turbinefit.pipeline import FIT_DETECT_WIDTH, image_heatmap_source

@@ -510,17 +510,26 @@ class TrackReport:
     summary: dict[str, Any] = field(default_factory=dict)
 
 
-def latency_stats(latency_ms: np.ndarray) -> dict[str, float]:
+def latency_stats(latency_ms: np.ndarray, window: int | None = None) -> dict[str, float]:
     """Median, 90th / 99th percentile, max [ms] and the slope of a least-squares line
-    through latency against keyframe index [ms per 1000 keyframes]."""
+    through latency against keyframe index [ms per 1000 keyframes]; also that slope after
+    the first ``window`` keyframes (``steady_*``: the window is full, so any growth left
+    would come from the flight's length)."""
     lat = np.asarray(latency_ms, dtype=np.float64)
     if lat.size == 0:
         return {}
-    idx = np.arange(lat.size, dtype=np.float64)
-    slope = float(np.polyfit(idx, lat, 1)[0]) * 1000.0 if lat.size > 1 else 0.0
-    return {"median_ms": float(np.median(lat)), "p90_ms": float(np.percentile(lat, 90)),
-            "p99_ms": float(np.percentile(lat, 99)), "max_ms": float(lat.max()),
-            "mean_ms": float(lat.mean()), "slope_ms_per_1000_keyframes": slope}
+
+    def slope(v: np.ndarray) -> float:
+        if v.size < 2:
+            return 0.0
+        return float(np.polyfit(np.arange(v.size, dtype=np.float64), v, 1)[0]) * 1000.0
+
+    out = {"median_ms": float(np.median(lat)), "p90_ms": float(np.percentile(lat, 90)),
+           "p99_ms": float(np.percentile(lat, 99)), "max_ms": float(lat.max()),
+           "mean_ms": float(lat.mean()), "slope_ms_per_1000_keyframes": slope(lat)}
+    if window is not None and lat.size > window + 1:
+        out["steady_slope_ms_per_1000_keyframes"] = slope(lat[window:])
+    return out
 
 
 def track_folder(
@@ -586,7 +595,7 @@ def track_folder(
     causal_poses = tracker.causal_world_T_cam()
     turbine = tracker.turbine
     latency = np.array([e.update_s * 1e3 for e in tracker.estimates])
-    causal = final = before = None
+    causal = final = before = frozen = None
     geometry = cfg.fit.geometry
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
         before = accuracy(flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
@@ -595,6 +604,8 @@ def track_folder(
                           geometry)
         final = accuracy(final_poses, turbine, flight.gt_world_T_cam, flight.gt_turbine,
                          geometry)
+        frozen = accuracy(tracker.world_T_cam(back_substitution=False), turbine,
+                          flight.gt_world_T_cam, flight.gt_turbine, geometry)
     cfg_dict = {"turbinefit_version": __version__, **tracker_config_dict(cfg)}
     summary: dict[str, Any] = {
         "turbinefit_version": __version__,
@@ -604,7 +615,7 @@ def track_folder(
         "heatmaps": (f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'} "
                      "(inside each update)" if from_images else "heatmaps/"),
         "config": _plain(tracker_config_dict(cfg)),
-        "latency": latency_stats(latency),
+        "latency": latency_stats(latency, cfg.window),
         "iterations_mean": float(np.mean([e.iterations for e in tracker.estimates])),
         "theta_prior_active_at_end": tracker.theta_prior_active,
         "turbine": {"initial": flight.turbine.to_dict(), "final": turbine.to_dict()},
@@ -613,9 +624,10 @@ def track_folder(
     if last.theta_covariance is not None:
         summary["turbine"]["final_sigma"] = dict(zip(
             TurbineParams.NAMES, np.sqrt(np.diag(last.theta_covariance)).tolist(), strict=True))
-    if before is not None and causal is not None and final is not None:
+    if before is not None and causal is not None and final is not None and frozen is not None:
         summary["accuracy"] = {"initial": before.to_dict(), "causal": causal.to_dict(),
-                               "final": final.to_dict()}
+                               "final": final.to_dict(),
+                               "final_without_back_substitution": frozen.to_dict()}
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_track_outputs) as tmp:
         write_tum(tmp / "causal.txt", flight.timestamps, causal_poses,
                   comment="turbinefit track: each keyframe's estimate when it arrived")

@@ -252,6 +252,12 @@ class Tracker:
         return TurbineParams.from_vector(self._theta).canonical()
 
     @property
+    def theta(self) -> FloatArray:
+        """(7,) the current turbine vector as the solver holds it (angles not wrapped;
+        :attr:`turbine` gives canonical ranges)."""
+        return self._theta.copy()
+
+    @property
     def timestamps(self) -> FloatArray:
         return np.asarray(self._times, dtype=np.float64)
 
