@@ -21,13 +21,14 @@ $(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 	touch $(STAMP)
 
 ## demo: render a 200-keyframe flight with photos, detect heat-maps with the shipped CNN,
-##       fit it, and write results and plots to demo/
+##       fit it, replay it through the in-flight tracker, and write results and plots to demo/
 demo: $(STAMP)
 	$(BIN)/turbinefit simulate $(DEMO)/flight --keyframes 200 --seed 1 --images --overwrite
 	$(BIN)/turbinefit detect $(DEMO)/flight/images/40.000000.png $(DEMO)/flight/images/120.000000.png \
 		--out $(DEMO)/detect --overwrite
 	$(BIN)/turbinefit fit $(DEMO)/flight --from-images --points interp --robust cauchy --out $(DEMO)/fit --overwrite
-	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit"
+	$(BIN)/turbinefit track $(DEMO)/flight --out $(DEMO)/track --overwrite
+	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit; in-flight tracking: $(DEMO)/track"
 
 ## test: run the test suite
 test: $(STAMP)
@@ -37,6 +38,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fit.py
 	$(BIN)/python benchmarks/bench_detect.py
+	$(BIN)/python benchmarks/bench_track.py
 
 ## model: train the shipped heat-map CNN from scratch (about 1.5 h on 2 cores)
 model: $(STAMP)

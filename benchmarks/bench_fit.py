@@ -31,10 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-DATA = HERE / "data"
-RESULTS = HERE / "results"
-BIN = Path(sys.executable).parent / "turbinefit"
+from common import BIN, DATA, RESULTS, simulate, warm, write_json
 
 #: accuracy configurations: name -> extra command-line options
 MODES = {
@@ -42,14 +39,6 @@ MODES = {
     "pose-only": ["--mode", "pose"],
     "joint, paper's pairwise frame": ["--pair-frame", "estimated"],
 }
-
-
-def simulate(n: int, seed: int) -> Path:
-    out = DATA / f"flight_n{n}_s{seed}"
-    if not (out / "keyframes.txt").exists():
-        subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
-                        str(seed), "--overwrite", "--quiet"], check=True)
-    return out
 
 
 def run_fit(flight: Path, extra: list[str] | None = None,
@@ -71,15 +60,6 @@ def run_fit(flight: Path, extra: list[str] | None = None,
             raise RuntimeError(f"{' '.join(cmd)} failed: {log.read_text().strip()}")
         summary = json.loads((out / "summary.json").read_text())
     return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / 1024.0, "summary": summary}
-
-
-def warm(flight: Path) -> None:
-    """Read every file once so that all runs see the page cache (as right after `simulate`)."""
-    for p in flight.rglob("*"):
-        if p.is_file():
-            with open(p, "rb") as f:
-                while f.read(1 << 24):
-                    pass
 
 
 def speed_row(n: int, runs: list[dict]) -> dict:
@@ -174,9 +154,7 @@ def main() -> None:
         "speed_numpy_reference": reference,
         "accuracy": acc,
     }
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(result, indent=2) + "\n")
-    os.replace(tmp, args.out)
+    write_json(args.out, result)
     print(f"\nwrote {args.out}")
 
 

@@ -30,36 +30,15 @@ import os
 import platform
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from common import BIN, DATA, RESULTS, simulate, warm, write_json
 
-HERE = Path(__file__).resolve().parent
-DATA = HERE / "data"
-RESULTS = HERE / "results"
-BIN = Path(sys.executable).parent / "turbinefit"
 #: the issue's latency budget [ms]: median and 99th percentile
 BUDGET_MEDIAN_MS, BUDGET_P99_MS = 30.0, 100.0
-
-
-def simulate(n: int, seed: int) -> Path:
-    out = DATA / f"flight_n{n}_s{seed}"
-    if not (out / "keyframes.txt").exists():
-        subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
-                        str(seed), "--overwrite", "--quiet"], check=True)
-    return out
-
-
-def warm(flight: Path) -> None:
-    """Read every file once so that all runs see the page cache."""
-    for p in flight.rglob("*"):
-        if p.is_file():
-            with open(p, "rb") as f:
-                while f.read(1 << 24):
-                    pass
 
 
 def run(command: str, flight: Path, extra: list[str] | None = None) -> dict:
@@ -211,9 +190,7 @@ def main() -> None:
           f"median {lat['median_ms']:.1f} ms, growing {lat['slope_ms_per_1000_keyframes']:+.0f} "
           f"ms per 1000 keyframes")
 
-    tmp_out = args.out.with_suffix(".tmp")
-    tmp_out.write_text(json.dumps(result, indent=2) + "\n")
-    os.replace(tmp_out, args.out)
+    write_json(args.out, result)
     print(f"\nwrote {args.out} and {RESULTS / 'track_latency.png'}")
 
 

@@ -990,7 +990,7 @@ def test_track_unbounded_window_and_options(good_flight: Path, tmp_path: Path,
 
 @pytest.mark.parametrize("args, patterns", [
     (["--window", "1"], ["--window", ">= 2"]),
-    (["--mode", "turbine"], ["mode", "joint or pose"]),
+    (["--preset", "turbine-only"], ["mode", "joint or pose"]),
     (["--preset", "nope"], ["unknown preset"]),
 ])
 def test_track_bad_options(args: list[str], patterns: list[str], good_flight: Path,

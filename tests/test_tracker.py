@@ -169,10 +169,11 @@ def test_back_substitution_of_a_linear_chain_is_exact() -> None:
     from turbinefit.solver.marginal import PoseConditional
 
     x = np.linalg.solve(H, -g)
-    moved = back_substitute([PoseConditional(pose0, K, k)], [prior], pose1.retract(x[6:12]),
-                            theta + x[12:])
-    assert moved[0] is not None
+    moved = back_substitute([PoseConditional(pose0, K, k)], [prior], [pose0],
+                            pose1.retract(x[6:12]), theta + x[12:])
     np.testing.assert_allclose(pose0.local(moved[0]), x[:6], atol=1e-9)
+    # without a conditional a pose stays where it was frozen
+    assert back_substitute([None], [None], [pose0], pose1, theta)[0] is pose0
 
 
 # --------------------------------------------------------------------------- against batch

@@ -122,25 +122,12 @@ def build_parser() -> argparse.ArgumentParser:
             "override it."),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
-    f.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
-                   help="output folder (written atomically; never the input folder)")
-    base = f.add_mutually_exclusive_group()
-    base.add_argument("--config", type=Path, default=None,
-                      help="YAML file of fit options (e.g. a previous run's config.yaml)")
-    base.add_argument("--preset", default=None,
-                      help="named configuration: paper-best (default), all-interp, all-corr, "
-                      "paper-worst, pose-only, turbine-only")
-
-    _add_fit_options(f, dflt)
+    _add_flight_job_options(f, dflt, "paper-best (default), all-interp, all-corr, paper-worst, "
+                            "pose-only, turbine-only")
     f.add_argument("--no-warmup", dest="warmup", action="store_const", const=False,
                    default=None, help="skip the correspondence warm-up stages (align, match) "
                    "and start with the configured cost")
-    f.add_argument("--from-images", action="store_true", default=None,
-                   help="detect the heat-maps from images/ even if heatmaps/ exists (default: "
-                   "only when heatmaps/ is absent)")
-    f.add_argument("--model", type=Path, default=None,
-                   help="ONNX heat-map model for detection (default: the shipped one)")
-    f.add_argument("--no-plots", action="store_true", help="skip the figures")
+    _add_photo_options(f, "detect the heat-maps from images/")
     f.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -163,8 +150,6 @@ def build_parser() -> argparse.ArgumentParser:
             "(latency.png, errors.png, scene.png). Fit options as for `turbinefit fit`."),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     k.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to replay")
-    k.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
-                   help="output folder (written atomically; never the input folder)")
     k.add_argument("--window", type=_whole_nonneg, default=tdf.window, metavar="K",
                    help=f"keyframes in the sliding window, >= 2; 0 keeps them all (the batch "
                    f"problem, per-keyframe work grows) (default: {tdf.window})")
@@ -175,19 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--no-prior", action="store_true",
                    help="no start-up prior on the turbine (default: a prior around the initial "
                    "turbine, removed once the images outweigh it)")
-    kbase = k.add_mutually_exclusive_group()
-    kbase.add_argument("--config", type=Path, default=None,
-                       help="YAML file of fit options (e.g. a fit run's config.yaml)")
-    kbase.add_argument("--preset", default=None,
-                       help="named fit configuration: paper-best (default), all-interp, "
-                       "all-corr, paper-worst, pose-only")
-    _add_fit_options(k, dflt)
-    k.add_argument("--from-images", action="store_true", default=None,
-                   help="detect each keyframe's heat-maps from images/ as it arrives, even if "
-                   "heatmaps/ exists (default: only when heatmaps/ is absent)")
-    k.add_argument("--model", type=Path, default=None,
-                   help="ONNX heat-map model for detection (default: the shipped one)")
-    k.add_argument("--no-plots", action="store_true", help="skip the figures")
+    _add_flight_job_options(k, dflt, "paper-best (default), all-interp, all-corr, "
+                            "paper-worst, pose-only", batch=False)
+    _add_photo_options(k, "detect each keyframe's heat-maps from images/ as it arrives")
     k.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but track "
                    "outputs)")
@@ -256,13 +231,39 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any) -> None:
-    """The options of :class:`FitConfig` that ``fit`` and ``track`` share."""
-    def opt(flag: str, name: str, help: str, **kw: Any) -> None:
-        parser.add_argument(flag, dest=name, default=None,
-                       help=f"{help} (default: {getattr(dflt, name)})", **kw)
+def _add_flight_job_options(parser: argparse.ArgumentParser, dflt: Any, presets: str,
+                            batch: bool = True) -> None:
+    """--out, --config | --preset and the fit options (``fit`` and ``track``)."""
+    parser.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
+                        help="output folder (written atomically; never the input folder)")
+    base = parser.add_mutually_exclusive_group()
+    base.add_argument("--config", type=Path, default=None,
+                      help="YAML file of fit options (e.g. a previous fit's config.yaml)")
+    base.add_argument("--preset", default=None, help=f"named configuration: {presets}")
+    _add_fit_options(parser, dflt, batch)
 
-    opt("--mode", "mode", "what to optimise", choices=["joint", "pose", "turbine"])
+
+def _add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """--from-images, --model, --no-plots (``fit`` and ``track``)."""
+    parser.add_argument("--from-images", action="store_true", default=None,
+                        help=f"{what} even if heatmaps/ exists (default: only when heatmaps/ "
+                        "is absent)")
+    parser.add_argument("--model", type=Path, default=None,
+                        help="ONNX heat-map model for detection (default: the shipped one)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any, batch: bool = True) -> None:
+    """The options of :class:`FitConfig`; ``batch=False`` (``track``) leaves out those the
+    tracker does not use (turbine-only mode, the batch fit's iteration and round limits)."""
+    def opt(flag: str, name: str, help: str, **kw: Any) -> None:
+        if not batch and name in ("max_iterations", "max_rounds"):
+            return
+        parser.add_argument(flag, dest=name, default=None,
+                            help=f"{help} (default: {getattr(dflt, name)})", **kw)
+
+    opt("--mode", "mode", "what to optimise",
+        choices=["joint", "pose", "turbine"] if batch else ["joint", "pose"])
     opt("--points", "points", "unary cost of the 6 model points",
         choices=["interp", "corr", "none"])
     opt("--lines", "lines", "unary cost of the line samples", choices=["interp", "corr", "none"])

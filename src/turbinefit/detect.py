@@ -131,13 +131,17 @@ class HeatmapDetector:
     Args:
         model: ONNX file; None = the shipped model.
         threads: onnxruntime intra-op threads; None = all cores.
+        spinning: let idle inference threads spin-wait for the next photo (fastest when
+            detection is all the machine does); False when other work, such as the
+            tracker's solver, shares the cores.
 
     Raises:
         InputError: naming the file if it is missing, not ONNX, of an unsupported opset or
             of the wrong input/output shape.
     """
 
-    def __init__(self, model: StrPath | None = None, threads: int | None = None) -> None:
+    def __init__(self, model: StrPath | None = None, threads: int | None = None, *,
+                 spinning: bool = True) -> None:
         import onnxruntime as ort
 
         self.path = Path(model) if model is not None else default_model_path()
@@ -147,6 +151,8 @@ class HeatmapDetector:
         opts.intra_op_num_threads = int(threads or os.cpu_count() or 1)
         opts.inter_op_num_threads = 1
         opts.log_severity_level = 3
+        if not spinning:  # idle threads sleep instead of spinning: other work needs the cores
+            opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             self.session = ort.InferenceSession(str(self.path), opts,
                                                 providers=["CPUExecutionProvider"])

@@ -28,6 +28,7 @@ from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import atomic_output_dir, check_output_dir, read_text, write_text_atomic
 from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
@@ -502,8 +503,8 @@ class TrackReport:
 
     out_dir: Path
     estimates: list[TrackEstimate]
-    world_T_cam: Any
-    turbine: Any
+    world_T_cam: SE3
+    turbine: TurbineParams
     latency_ms: np.ndarray
     causal: Accuracy | None
     final: Accuracy | None
@@ -680,7 +681,7 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
         return cam, HeatmapStack([blank] * len(paths))
 
     flight = read_flight(flight_dir, heatmaps=source)
-    detector = HeatmapDetector(model)
+    detector = HeatmapDetector(model, spinning=False)  # the solver needs the cores between photos
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:
@@ -692,8 +693,8 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
     return flight, paths, detect
 
 
-def _track_plots(out: Path, flight: Flight, final_poses: Any, causal_poses: Any,
-                 turbine: Any, latency: np.ndarray, geometry: TurbineGeometry) -> None:
+def _track_plots(out: Path, flight: Flight, final_poses: SE3, causal_poses: SE3,
+                 turbine: TurbineParams, latency: np.ndarray, geometry: TurbineGeometry) -> None:
     from turbinefit import plots
     from turbinefit.geometry.se3 import pose_errors
 

@@ -120,24 +120,22 @@ def schur_eliminate(H: FloatArray, g: FloatArray, drop: int
 
 
 def back_substitute(conditionals: list[PoseConditional | None], priors: list[GaussianPrior | None],
-                    last: SE3, theta: FloatArray) -> list[SE3 | None]:
+                    frozen: list[SE3], last: SE3, theta: FloatArray) -> list[SE3]:
     """Move eliminated poses with the state that remains, newest first.
 
     ``conditionals[i]`` and ``priors[i]`` come from eliminating pose ``i`` (the prior's
-    linearisation point is pose ``i + 1`` and theta at that moment); ``last`` is the
-    current estimate of the pose after the newest eliminated one, ``theta`` the current
-    turbine. Entries that are None (a fixed pose) give None. Linear in the offsets: O(N).
+    linearisation point is pose ``i + 1`` and theta at that moment), ``frozen[i]`` is its
+    estimate then; ``last`` is the current estimate of the pose after the newest eliminated
+    one, ``theta`` the current turbine. A pose without a conditional (a fixed pose, or a
+    failed elimination) stays frozen. Linear in the offsets: O(N).
     """
-    out: list[SE3 | None] = [None] * len(conditionals)
+    out = list(frozen)
     nxt = last
     for i in range(len(conditionals) - 1, -1, -1):
         c, p = conditionals[i], priors[i]
-        if c is None or p is None:
-            continue
-        d = p.delta(nxt, theta)
-        pose = c.world_T_cam.retract(c.k + c.K @ d)
-        out[i] = pose
-        nxt = pose
+        if c is not None and p is not None:
+            out[i] = c.world_T_cam.retract(c.k + c.K @ p.delta(nxt, theta))
+        nxt = out[i]
     return out
 
 

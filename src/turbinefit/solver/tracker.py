@@ -267,10 +267,11 @@ class Tracker:
         (:func:`~turbinefit.solver.marginal.back_substitute`, linear, O(N)), or, with
         ``back_substitution=False``, frozen at their estimate when they left the window."""
         out: list[SE3 | None] = list(self._final)
-        if back_substitution and self._conditionals and self._w_est:
-            moved = back_substitute(self._conditionals, self._cond_priors, self._w_est[0],
-                                    self._theta)
-            out[:len(moved)] = [m if m is not None else f for m, f in zip(moved, out, strict=False)]
+        n_old = len(self._conditionals)  # keyframes 0 .. n_old-1 have left the window
+        if back_substitution and n_old and self._w_est:
+            frozen = [p for p in out[:n_old] if p is not None]
+            out[:n_old] = back_substitute(self._conditionals, self._cond_priors, frozen,
+                                          self._w_est[0], self._theta)
         for i, k in enumerate(self._w_index):
             out[k] = self._w_est[i]
         return SE3(np.stack([p.wxyz_xyz for p in out if p is not None]))

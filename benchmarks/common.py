@@ -1,0 +1,44 @@
+"""What the benchmark scripts share: where data and results live, cached simulated flight
+folders, page-cache warming and atomic JSON results (run the scripts from anywhere: their
+own folder is on ``sys.path``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE / "data"
+RESULTS = HERE / "results"
+BIN = Path(sys.executable).parent / "turbinefit"
+
+
+def simulate(n: int, seed: int) -> Path:
+    """The default-preset flight folder of ``n`` keyframes and ``seed`` (simulated once,
+    then reused from ``benchmarks/data/``)."""
+    out = DATA / f"flight_n{n}_s{seed}"
+    if not (out / "keyframes.txt").exists():
+        DATA.mkdir(exist_ok=True)
+        subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
+                        str(seed), "--overwrite", "--quiet"], check=True)
+    return out
+
+
+def warm(flight: Path) -> None:
+    """Read every file once so that all runs see the page cache (as right after `simulate`)."""
+    for p in flight.rglob("*"):
+        if p.is_file():
+            with open(p, "rb") as f:
+                while f.read(1 << 24):
+                    pass
+
+
+def write_json(path: Path, result: dict) -> None:
+    """Write ``result`` to ``path`` atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(result, indent=2) + "\n")
+    os.replace(tmp, path)
