@@ -11,6 +11,8 @@ Runs the real command line ``turbinefit track FLIGHT --out OUT --no-plots --quie
 * accuracy: 200-keyframe flights, seeds 0-7: the tracker's final estimates (default
   window, no batch pass), its causal estimates (each keyframe on arrival) and its final
   estimates without back-substitution, against the batch fit of the same flight;
+* the same with ``--marginal-terms same`` (keyframes leaving the window linearised with
+  the configured cost instead of as correspondences);
 * the unbounded window (``--window 0``) on the 200-keyframe flight of seed 0: its result
   against the batch fit, and how its latency grows.
 
@@ -109,17 +111,19 @@ def main() -> None:
     print(f"\n{'window':>6} {'median':>8} {'p99':>8} {'max':>8} {'slope':>8} {'steady':>8}"
           f" {'final':>7} {'ratio':>6} {'causal':>7}   (ms; slopes in ms per 1000 keyframes;"
           f" position errors in m)")
-    for w in args.windows:
-        res = run("track", long_flight, ["--window", str(w)])
+    runs = [(str(w), ["--window", str(w)]) for w in args.windows]
+    runs.append((f"{default_window}-same", ["--marginal-terms", "same"]))
+    for name, extra in runs:
+        res = run("track", long_flight, extra)
         row = track_row(res, batch_long)
-        lat_rows[str(w)] = row
+        lat_rows[name] = row
         lat = row["latency"]
-        print(f"{w:6d} {lat['median_ms']:8.1f} {lat['p99_ms']:8.1f} {lat['max_ms']:8.1f} "
+        print(f"{name:>6} {lat['median_ms']:8.1f} {lat['p99_ms']:8.1f} {lat['max_ms']:8.1f} "
               f"{lat['slope_ms_per_1000_keyframes']:+8.2f} "
               f"{lat.get('steady_slope_ms_per_1000_keyframes', 0.0):+8.2f} "
               f"{row['final']['position_m']:7.3f} {row['final']['position_ratio_to_batch']:6.2f} "
               f"{row['causal']['position_m']:7.3f}")
-        if w == default_window:
+        if name == str(default_window):
             default_latency = res["latency_ms"]
     result["latency"] = {"keyframes": args.keyframes, "by_window": lat_rows,
                          "batch": {"wall_s": round(batch_long["wall_s"], 2),
@@ -140,24 +144,30 @@ def main() -> None:
     print(f"\n{n} keyframes, default window {default_window}: position error [m] "
           f"(ratio to batch)")
     print(f"{'seed':>4} {'batch':>7} {'final':>14} {'causal':>14} {'no back-sub.':>14}"
-          f" {'orient. batch/final [deg]':>26}")
+          f" {'marg. same':>14} {'orient. batch/final [deg]':>26}")
     acc_rows = {}
     for seed in args.seeds:
         flight = simulate(n, seed)
         batch = run("fit", flight)
         row = track_row(run("track", flight), batch)
+        same = track_row(run("track", flight, ["--marginal-terms", "same"]), batch)
+        row["marginal_terms_same"] = same["final"]
         acc_rows[str(seed)] = row
         print(f"{seed:4d} {row['batch']['position_m']:7.3f} "
               + " ".join(f"{row[k]['position_m']:7.3f} ({row[k]['position_ratio_to_batch']:.2f})"
-                         for k in ("final", "causal", "final_without_back_substitution"))
+                         for k in ("final", "causal", "final_without_back_substitution",
+                                   "marginal_terms_same"))
               + f" {row['batch']['orientation_deg']:12.3f} / {row['final']['orientation_deg']:.3f}")
     means = {k: statistics.mean(r[k]["position_m"] for r in acc_rows.values())
-             for k in ("batch", "final", "causal", "final_without_back_substitution")}
+             for k in ("batch", "final", "causal", "final_without_back_substitution",
+                       "marginal_terms_same")}
     ratios = [r["final"]["position_ratio_to_batch"] for r in acc_rows.values()]
     print(f"mean {means['batch']:7.3f} {means['final']:7.3f} ({means['final'] / means['batch']:.2f})"
           f" {means['causal']:7.3f} ({means['causal'] / means['batch']:.2f}) "
           f"{means['final_without_back_substitution']:7.3f} "
-          f"({means['final_without_back_substitution'] / means['batch']:.2f}); per-flight "
+          f"({means['final_without_back_substitution'] / means['batch']:.2f}) "
+          f"{means['marginal_terms_same']:7.3f} "
+          f"({means['marginal_terms_same'] / means['batch']:.2f}); per-flight "
           f"ratio of final to batch: max {max(ratios):.2f}, {sum(r <= 1.1 for r in ratios)} of "
           f"{len(ratios)} within 1.10")
     result["accuracy"] = {"keyframes": n, "by_seed": acc_rows, "mean_position_m": means,

@@ -157,6 +157,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"correspondence rounds per keyframe (default: {tdf.rounds})")
     k.add_argument("--iterations", type=_positive_int, default=tdf.iterations,
                    help=f"LM iterations per round (default: {tdf.iterations})")
+    k.add_argument("--marginal-terms", choices=["corr", "same"], default=tdf.marginal_terms,
+                   help="how a keyframe leaving the window is linearised into the prior: as "
+                   "correspondences (valid over the whole search range) or as the configured "
+                   f"cost (default: {tdf.marginal_terms})")
     k.add_argument("--no-prior", action="store_true",
                    help="no start-up prior on the turbine (default: a prior around the initial "
                    "turbine, removed once the images outweigh it)")
@@ -476,7 +480,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         raise InputError("must be >= 2, or 0 to keep every keyframe", field="--window")
     try:
         cfg = TrackerConfig(fit=fit_cfg, window=args.window or None, rounds=args.rounds,
-                            iterations=args.iterations)
+                            iterations=args.iterations, marginal_terms=args.marginal_terms)
         if args.no_prior:
             cfg = dataclasses.replace(cfg, theta_sigma=None)
     except ValueError as exc:

@@ -7,13 +7,16 @@ keyframes together with theta:
 
 1. the new pose is predicted from the previous estimate and the measured step (the
    pairwise term's residual is zero there);
-2. a few Levenberg-Marquardt rounds (optionally one *match* round of wide-basin
-   correspondences first, as the batch warm-up does) refine the window with the
-   configured cost of :class:`~turbinefit.solver.config.FitConfig`;
-3. when the window is full, its oldest keyframe is marginalised: its image terms, its
-   pairwise edge and the prior it carried become a Gaussian prior on the next keyframe
-   and theta (:mod:`turbinefit.solver.marginal`). The pose itself is frozen at its
-   estimate.
+2. a few Levenberg-Marquardt rounds (on the first keyframes and when the turbine comes
+   back into view, first one *match* round of wide-basin correspondences, as the batch
+   warm-up does) refine the window with the configured cost of
+   :class:`~turbinefit.solver.config.FitConfig`;
+3. when the window is full, its oldest keyframe is marginalised: its image terms
+   (linearised as correspondences, ``marginal_terms``), its pairwise edge and the prior
+   it carried become a Gaussian prior on the next keyframe and theta
+   (:mod:`turbinefit.solver.marginal`). The pose is frozen at its estimate, and its
+   linear conditional on the next pose and theta is kept, so that
+   :meth:`Tracker.world_T_cam` can move it with later estimates (back-substitution).
 
 Work per keyframe is therefore bounded by the window, not the flight. The latest pose's
 and theta's marginal covariances come from the window's Gauss-Newton Hessian (with the
@@ -21,13 +24,15 @@ prior): the inverse of the information, in local pose coordinates (m, rad) and t
 units.
 
 Start-up: theta begins at its initial value with a Gaussian prior (``theta_sigma``), so
-the first keyframes, which see the turbine from one side only, cannot move it far; the
-prior is folded into the marginal information like any other term and fades in weight as
-evidence accumulates. Gauge: as in the batch fit, the first keyframe is held fixed
-(``gauge="first"``) or every keyframe is weakly anchored to its GPS position (``"gps"``).
+the first keyframes, which see the turbine from one side only, cannot move it far. The
+prior acts on theta alone, which eliminating poses passes through unchanged, so it is
+kept apart from the marginal information and removed exactly once the images outweigh it
+(``theta_prior_release``). Keyframes whose heat-maps show nothing carry no image terms.
+Gauge: as in the batch fit, the first keyframe is held fixed (``gauge="first"``) or every
+keyframe is weakly anchored to its GPS position (``"gps"``).
 
 With ``window=None`` nothing is marginalised and :meth:`Tracker.finish` runs the batch
-problem to convergence: the tracker then equals :func:`turbinefit.solver.fit.fit`.
+problem to convergence: the tracker then ends in a minimum of the batch problem.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -86,6 +92,13 @@ class TrackerConfig:
         theta_sigma: standard deviations of the start-up prior on theta (7 values, see
             :data:`DEFAULT_THETA_SIGMA`), or None: no prior (theta is then unobservable
             from the first keyframe alone; use with care).
+        marginal_terms: how the image terms of a keyframe leaving the window are linearised
+            into the prior: ``corr``, as correspondences (points as found by the window
+            search, lines along the search normal), whose quadratic model holds over the
+            whole search range; or ``same``, as the configured cost, whose interp terms are
+            quadratic only within about a pixel of the heat-map's ridge, so that the prior
+            of a keyframe marginalised while theta was still off carries a wrong model of
+            it (measured: see the README's tracking figures).
         theta_prior_release: the start-up prior is removed once the images alone inform
             every direction of theta this many times more than it does (the smallest
             generalised eigenvalue of data and prior information); None: keep it.
@@ -100,6 +113,7 @@ class TrackerConfig:
     match_keyframes: int = 5
     theta_sigma: tuple[float, ...] | None = DEFAULT_THETA_SIGMA
     theta_prior_release: float | None = 10.0
+    marginal_terms: Literal["corr", "same"] = "corr"
     finish_rounds: int = 3
     finish_iterations: int = 15
 
@@ -117,6 +131,8 @@ class TrackerConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ValueError(f"{name}: must be a whole number >= 0 (got {v!r})")
+        if self.marginal_terms not in ("corr", "same"):
+            raise ValueError(f"marginal_terms: must be corr or same (got {self.marginal_terms!r})")
         r = self.theta_prior_release
         if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
             raise ValueError(f"theta_prior_release: must be a positive number or None (got {r!r})")
@@ -182,6 +198,15 @@ class KeyframeError(ValueError):
         self.reason = message
 
 
+def marginal_config(cfg: FitConfig) -> FitConfig:
+    """The cost a keyframe's image terms are linearised with when it leaves the window
+    (``marginal_terms="corr"``): correspondences for points and lines, line residuals along
+    the search normal, the rest as configured."""
+    return dataclasses.replace(
+        cfg, points="corr" if cfg.points != "none" else "none",
+        lines="corr" if cfg.lines != "none" else "none", line_residual="normal")
+
+
 def _predict(world_T_prev: SE3, meas_prev: SE3, meas_new: SE3) -> SE3:
     """The new pose at zero pairwise residual: the previous estimate moved by the measured
     world-frame step and rotated by the measured relative rotation."""
@@ -216,6 +241,7 @@ class Tracker:
         self.initial_turbine = initial_turbine
         cfg = self.config
         self._refine_cfg = cfg.fit
+        self._marg_cfg = marginal_config(cfg.fit) if cfg.marginal_terms == "corr" else cfg.fit
         self._match_cfg = match_config(cfg.fit)
         self._theta = initial_turbine.to_vector().astype(np.float64)
         if not np.all(np.isfinite(self._theta)):
@@ -465,7 +491,7 @@ class Tracker:
         """Fold the window's oldest keyframe into the prior and freeze its pose."""
         fixed = self._fixed()
         theta = self._theta
-        one = FitProblem(flight, self._refine_cfg, keyframes=np.array([0]),
+        one = FitProblem(flight, self._marg_cfg, keyframes=np.array([0]),
                          fixed=fixed[:1], evidence=np.array(self._w_evidence[:1]))
         corr = (one.find_correspondences(poses[0:1], theta) if one.needs_correspondences
                 else Correspondences())
