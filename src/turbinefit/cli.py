@@ -172,6 +172,51 @@ def build_parser() -> argparse.ArgumentParser:
                    "outputs)")
     k.add_argument("--quiet", action="store_true", help="no status line or summary")
 
+    # ---- experiment / report ----------------------------------------------------
+    e = sub.add_parser(
+        "experiment", help="Monte Carlo studies of the paper (simulated flights)",
+        description=(
+            "Run (or resume) a Monte Carlo study: many simulated flights, each fitted under\n"
+            "the study's configurations, one row per (flight, configuration) in\n"
+            "OUT_DIR/rows.csv, with sweep.yaml (the resolved sweep), PNG figures, summary.json\n"
+            "and report.md (medians and 90th percentiles, figures embedded).\n\n"
+            "  unary    the four unary configurations (paper Fig. 4)\n"
+            "  joint    joint vs pose-only (Fig. 5)\n"
+            "  turbine  recovery of the turbine parameters (Fig. 6)\n"
+            "  roll     a wrong blade rotation: false roll of pose-only (Fig. 7)\n"
+            "  basin    success rate against the size of the initial errors\n"
+            "  all      all of them, into OUT_DIR/<study>/\n\n"
+            "Re-running the same command resumes without redoing finished rows. Flights run\n"
+            "on all local cores, or on a Ray cluster with --backend ray (address from\n"
+            "RAY_ADDRESS; needs `pip install ray`)."),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    e.add_argument("study", metavar="STUDY", choices=["unary", "joint", "turbine", "roll",
+                                                        "basin", "all"],
+                   help="unary, joint, turbine, roll, basin or all")
+    e.add_argument("--flights", type=_positive_int, default=None,
+                   help="simulated flights (default: the study's: 200 for unary, joint and "
+                   "turbine, 20 for roll, 120 for basin)")
+    e.add_argument("--keyframes", type=_positive_int, default=100, help="keyframes per flight "
+                   "(default: 100)")
+    e.add_argument("--seed", type=_seed, default=0, help="sweep seed (default: 0)")
+    e.add_argument("--config", type=Path, default=None,
+                   help="a sweep YAML (the sweep.yaml of a run) instead of the study's; "
+                   "--flights, --keyframes and --seed then do not apply")
+    e.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, default=None,
+                   help="output folder (default: experiments/STUDY)")
+    e.add_argument("--backend", choices=["local", "ray"], default="local",
+                   help="where flights run (default: local processes)")
+    e.add_argument("--workers", type=_positive_int, default=None,
+                   help="local processes (default: all cores)")
+    e.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    r = sub.add_parser(
+        "report", help="rebuild an experiment's figures and report from its rows",
+        description="Rebuild the figures, summary.json and report.md of an experiment folder "
+        "(or of every study folder below it, as `experiment all` writes) from its stored "
+        "rows.csv and sweep.yaml, without running anything.")
+    r.add_argument("folder", metavar="DIR", type=Path, help="experiment folder")
+
     # ---- detect -----------------------------------------------------------------
     d = sub.add_parser(
         "detect", help="heat-maps of photos with the CNN (onnxruntime)",
@@ -532,6 +577,75 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_experiment(args: argparse.Namespace) -> int:
+    from turbinefit.errors import InputError
+    from turbinefit.experiments import STUDIES, study_config
+    from turbinefit.experiments.studies import run_study
+    from turbinefit.experiments.sweep import SweepConfig
+
+    studies = list(STUDIES) if args.study == "all" else [args.study]
+    root = args.out_dir or Path("experiments") / args.study
+    if args.config is not None:
+        if args.study == "all":
+            raise InputError("--config runs one sweep: give a study, not all", field="--config")
+        from turbinefit.io.camera_yaml import load_yaml_mapping
+
+        data = load_yaml_mapping(args.config)
+        try:
+            configs = {args.study: SweepConfig.from_dict(data)}
+        except (TypeError, ValueError) as exc:
+            raise InputError(str(exc), args.config) from None
+    else:
+        configs = {st: study_config(st, args.flights, args.keyframes, args.seed)
+                   for st in studies}
+    for st, cfg in configs.items():
+        out = root / st if args.study == "all" else root
+        bar = None
+        progress = None
+        if not args.quiet:
+            from tqdm import tqdm
+
+            bar = tqdm(desc=st, unit="flight", file=sys.stderr, dynamic_ncols=True,
+                       disable=None)
+
+            def progress(done: int, total: int, bar: Any = bar) -> None:
+                if bar.total != total:
+                    bar.reset(total=total)
+                bar.n = done
+                bar.refresh()
+
+        try:
+            rep = run_study(cfg, out, backend=args.backend, workers=args.workers,
+                            progress=progress)
+        finally:
+            if bar is not None:
+                bar.close()
+        if not args.quiet:
+            failed = sum(r["status"] != "ok" for r in rep.rows)
+            rate = rep.new_rows / rep.seconds if rep.seconds > 0 else 0.0
+            print(f"{st}: {len(rep.rows)} rows ({rep.new_rows} new in {rep.seconds:.0f} s, "
+                  f"{rate:.2f} rows/s), {failed} failed; report {out / 'report.md'}")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from turbinefit.errors import InputError
+    from turbinefit.experiments import write_report
+
+    folder = args.folder
+    if (folder / "sweep.yaml").is_file():
+        print(f"wrote {write_report(folder)}")
+        return 0
+    subs = sorted(p for p in folder.iterdir() if (p / "sweep.yaml").is_file()) \
+        if folder.is_dir() else []
+    if not subs:
+        raise InputError("not an experiment folder (no sweep.yaml in it or its sub-folders)",
+                         folder)
+    for p in subs:
+        print(f"wrote {write_report(p)}")
+    return 0
+
+
 def _cmd_detect(args: argparse.Namespace) -> int:
     from turbinefit.pipeline import detect_images
 
@@ -577,6 +691,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_simulate(args)
         if args.command == "track":
             return _cmd_track(args)
+        if args.command == "experiment":
+            return _cmd_experiment(args)
+        if args.command == "report":
+            return _cmd_report(args)
         if args.command == "detect":
             return _cmd_detect(args)
         if args.command == "train":

@@ -61,3 +61,20 @@ def accuracy(
         model_point_error_m=model_point_error(turbine, gt_turbine, geometry),
         param_errors=pdict,
     )
+
+
+def line_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares line ``y = a x + b`` through finite pairs; ``(nan, nan)`` with fewer
+    than two or with no spread in ``x`` (relative 1e-9)."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    y = np.asarray(y, dtype=np.float64).ravel()
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < 2:
+        return math.nan, math.nan
+    dx = x - x.mean()
+    var = float(dx @ dx)
+    if var <= (1e-9 * max(1.0, float(np.abs(x).max()))) ** 2 * x.size:
+        return math.nan, math.nan
+    a = float(dx @ (y - y.mean())) / var
+    return a, float(y.mean() - a * x.mean())

@@ -1,0 +1,358 @@
+"""The paper's three simulated studies (Section IV-A), the roll artefact (IV-B) and the
+convergence basin, as sweeps with summaries, plots and a Markdown report.
+
+Each study is a :class:`~turbinefit.experiments.sweep.SweepConfig` (:func:`study_config`);
+:func:`run_study` runs or resumes it into a folder and writes the report;
+:func:`write_report` rebuilds the figures and ``report.md`` from the stored rows alone.
+
+Studies:
+
+* ``unary`` (paper Fig. 4): the four unary configurations (points x lines, each corr or
+  interp), initial against final mean position and orientation error, least-squares lines;
+* ``joint`` (Fig. 5): joint against pose-only optimisation;
+* ``turbine`` (Fig. 6): initial against final mean 3-D error of the six model points, and
+  each parameter's error before and after;
+* ``roll`` (Fig. 7): a wrong blade rotation (+10 deg) with exact GPS/IMU attitude; the
+  camera roll error left by pose-only and by joint optimisation;
+* ``basin``: success rate (final position and model-point errors under 0.5 m) against the
+  size of the initial turbine and pose errors, up to 6x the defaults.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from turbinefit.errors import InputError
+from turbinefit.eval.metrics import line_fit
+from turbinefit.experiments.sweep import (
+    PARAM_COLUMNS,
+    ROWS_FILE,
+    SweepConfig,
+    SweepReport,
+    read_rows,
+    run_sweep,
+)
+
+#: Study names, in the order ``all`` runs them.
+STUDIES = ("unary", "joint", "turbine", "roll", "basin")
+#: The paper's four unary configurations (points, lines).
+UNARY = {
+    "points corr, lines interp": {"points": "corr", "lines": "interp"},
+    "points interp, lines interp": {"points": "interp", "lines": "interp"},
+    "points corr, lines corr": {"points": "corr", "lines": "corr"},
+    "points interp, lines corr": {"points": "interp", "lines": "corr"},
+}
+#: What counts as a converged flight in the basin study [m].
+SUCCESS_POSITION_M = 0.5
+SUCCESS_MODEL_POINTS_M = 0.5
+RUNS_FILE = "runs.json"
+REPORT_FILE = "report.md"
+
+
+def study_config(study: str, flights: int | None = None, keyframes: int = 100,
+                 seed: int = 0) -> SweepConfig:
+    """The sweep of ``study`` (see the module docstring)."""
+    joint = {"joint": {"preset": "paper-best"}, "pose-only": {"preset": "pose-only"}}
+    if study == "unary":
+        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
+                           configs={k: dict(v) for k, v in UNARY.items()})
+    if study == "joint":
+        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
+                           configs=joint)
+    if study == "turbine":
+        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
+                           pose_scale=(0.5, 2.0), theta_scale=(0.5, 2.0),
+                           configs={"joint": {"preset": "paper-best"}})
+    if study == "roll":
+        return SweepConfig(name=study, flights=flights or 20, keyframes=keyframes, seed=seed,
+                           pose_scale=(0.0, 0.0), theta_scale=(0.0, 0.0),
+                           blade_rotation_offset_deg=10.0, configs=joint)
+    if study == "basin":
+        return SweepConfig(name=study, flights=flights or 120, keyframes=keyframes, seed=seed,
+                           pose_scale=(0.0, 6.0), theta_scale=(0.0, 6.0),
+                           configs={"joint": {"preset": "paper-best"}})
+    raise InputError(f"unknown study {study!r} (choose from {', '.join(STUDIES)}, all)",
+                     field="study")
+
+
+def run_study(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str = "local",
+              workers: int | None = None,
+              progress: Callable[[int, int], None] | None = None) -> SweepReport:
+    """Run or resume the sweep into ``out_dir``, record the run's timing in
+    ``runs.json``, and write the figures and ``report.md``."""
+    out = Path(out_dir)
+    rep = run_sweep(cfg, out, backend=backend, workers=workers, progress=progress)
+    runs_path = out / RUNS_FILE
+    runs = json.loads(runs_path.read_text()) if runs_path.exists() else []
+    runs.append({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "backend": backend,
+                 "workers": workers or os.cpu_count(), "new_rows": rep.new_rows,
+                 "seconds": round(rep.seconds, 2),
+                 "rows_per_s": round(rep.new_rows / rep.seconds, 3) if rep.seconds > 0 else None})
+    from turbinefit.io.atomic import write_text_atomic
+
+    write_text_atomic(runs_path, json.dumps(runs, indent=2) + "\n")
+    write_report(out)
+    return rep
+
+
+# ---------------------------------------------------------------------------------------
+# summaries
+# ---------------------------------------------------------------------------------------
+def _ok(rows: list[dict[str, Any]], config: str | None = None) -> list[dict[str, Any]]:
+    return [r for r in rows if r["status"] == "ok" and (config is None or r["config"] == config)]
+
+
+def _col(rows: list[dict[str, Any]], key: str) -> np.ndarray:
+    return np.array([r[key] for r in rows], dtype=np.float64)
+
+
+def reduction_stats(rows: list[dict[str, Any]], metric: str) -> dict[str, float]:
+    """Median and 90th percentile of the final error and of the error reduction
+    ``1 - final / initial`` [%] of ``metric`` over ``rows`` (flights whose initial error is
+    zero are left out of the reduction)."""
+    if not rows:
+        return {}
+    ini, fin = _col(rows, f"init_{metric}"), _col(rows, f"final_{metric}")
+    keep = ini > 1e-9
+    red = 100.0 * (1.0 - fin[keep] / ini[keep])
+    out = {"final_median": float(np.median(fin)), "final_p90": float(np.percentile(fin, 90)),
+           "initial_median": float(np.median(ini))}
+    if red.size:
+        out["reduction_median_pct"] = float(np.median(red))
+        out["reduction_p10_pct"] = float(np.percentile(red, 10))
+        out["reduction_p90_pct"] = float(np.percentile(red, 90))
+    return out
+
+
+def summarize(cfg: SweepConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The study's numbers: per configuration the reduction statistics of position,
+    orientation and model-point error, least-squares lines of final against initial
+    error, failures; plus the study's own figures (ordering, recovery, roll, basin)."""
+    out: dict[str, Any] = {"study": cfg.name, "rows": len(rows),
+                           "failed": sum(r["status"] != "ok" for r in rows), "configs": {}}
+    for name in cfg.configs:
+        ok = _ok(rows, name)
+        c: dict[str, Any] = {"flights": len(ok)}
+        for metric in ("position_m", "orientation_deg", "model_points_m", "roll_deg"):
+            c[metric] = reduction_stats(ok, metric)
+            if ok:
+                c[metric]["line"] = line_fit(_col(ok, f"init_{metric}"), _col(ok, f"final_{metric}"))
+        if ok:
+            c["time_s_median"] = float(np.median(_col(ok, "time_s")))
+            c["iterations_median"] = float(np.median(_col(ok, "iterations")))
+        out["configs"][name] = c
+    cs = out["configs"]
+    ranked = sorted((n for n in cs if cs[n]["flights"]),
+                    key=lambda n: cs[n]["position_m"]["final_median"])
+    out["ranking_by_median_final_position"] = ranked
+    if cfg.name == "turbine" or "joint" in cfg.configs:
+        ok = _ok(rows, "joint" if "joint" in cfg.configs else next(iter(cfg.configs)))
+        if ok:
+            ini, fin = _col(ok, "init_model_points_m"), _col(ok, "final_model_points_m")
+            keep = ini > 1e-9
+            out["turbine_recovery_median_pct"] = float(np.median(100 * (1 - fin[keep] / ini[keep])))
+            out["param_abs_error_median"] = {
+                p: {"initial": float(np.median(np.abs(_col(ok, f"init_{p}")))),
+                    "final": float(np.median(np.abs(_col(ok, f"final_{p}"))))}
+                for p in PARAM_COLUMNS}
+    if cfg.name == "roll":
+        out["roll_deg_mean_abs"] = {
+            "initial": float(np.mean(_col(_ok(rows), "init_roll_deg"))) if _ok(rows) else None,
+            **{n: float(np.mean(_col(_ok(rows, n), "final_roll_deg")))
+               for n in cfg.configs if _ok(rows, n)}}
+    if cfg.name == "basin":
+        ok = _ok(rows)
+        out["success"] = basin_table(rows)
+        out["success_rate"] = (float(np.mean([_success(r) for r in ok])) if ok else None)
+    return out
+
+
+def _success(r: dict[str, Any]) -> bool:
+    return (r["status"] == "ok" and r["final_position_m"] < SUCCESS_POSITION_M
+            and r["final_model_points_m"] < SUCCESS_MODEL_POINTS_M)
+
+
+def basin_table(rows: list[dict[str, Any]], edges: tuple[float, ...] = (0, 1, 2, 3, 4, 5, 6)
+                ) -> dict[str, Any]:
+    """Success rate in bins of the turbine-error and pose-error scales (failed fits count
+    as failures)."""
+    e = np.asarray(edges, dtype=np.float64)
+    th = np.array([r["theta_scale"] for r in rows])
+    po = np.array([r["pose_scale"] for r in rows])
+    ok = np.array([_success(r) for r in rows], dtype=np.float64)
+    rate = np.full((e.size - 1, e.size - 1), np.nan)
+    count = np.zeros((e.size - 1, e.size - 1), dtype=int)
+    for i in range(e.size - 1):
+        for j in range(e.size - 1):
+            m = (th >= e[i]) & (th < e[i + 1]) & (po >= e[j]) & (po < e[j + 1])
+            count[i, j] = int(m.sum())
+            if m.any():
+                rate[i, j] = float(ok[m].mean())
+    by_theta = [float(ok[(th >= e[i]) & (th < e[i + 1])].mean())
+                if np.any((th >= e[i]) & (th < e[i + 1])) else None for i in range(e.size - 1)]
+    by_pose = [float(ok[(po >= e[j]) & (po < e[j + 1])].mean())
+               if np.any((po >= e[j]) & (po < e[j + 1])) else None for j in range(e.size - 1)]
+    return {"edges": list(edges), "rate": [[None if math.isnan(v) else v for v in row]
+                                           for row in rate.tolist()],
+            "count": count.tolist(), "by_theta_scale": by_theta, "by_pose_scale": by_pose}
+
+
+# ---------------------------------------------------------------------------------------
+# report
+# ---------------------------------------------------------------------------------------
+def load_study(folder: str | os.PathLike[str]) -> tuple[SweepConfig, list[dict[str, Any]]]:
+    """The sweep configuration and rows stored in ``folder`` (InputError if missing)."""
+    import yaml
+
+    root = Path(folder)
+    sweep = root / "sweep.yaml"
+    if not sweep.is_file():
+        raise InputError("not a sweep folder (no sweep.yaml)", root)
+    try:
+        cfg = SweepConfig.from_dict(yaml.safe_load(sweep.read_text()) or {})
+    except (ValueError, TypeError, yaml.YAMLError) as exc:
+        raise InputError(f"bad sweep configuration: {exc}", sweep) from None
+    return cfg, read_rows(root / ROWS_FILE)
+
+
+def _pct(v: float | None) -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.0f} %"
+
+
+def _num(v: float | None, digits: int = 3) -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{digits}f}"
+
+
+def write_report(folder: str | os.PathLike[str]) -> Path:
+    """Figures (PNG) and ``report.md`` of the study in ``folder``, from its rows alone;
+    also ``summary.json``. Returns the report's path."""
+    from turbinefit import plots
+    from turbinefit.io.atomic import write_text_atomic
+
+    root = Path(folder)
+    cfg, rows = load_study(root)
+    summ = summarize(cfg, rows)
+    names = list(cfg.configs)
+    ok = _ok(rows)
+    figures: list[tuple[str, str]] = []
+    if ok:
+        series = {n: _ok(rows, n) for n in names}
+        if cfg.name in ("unary", "joint") or len(names) > 1:
+            plots.plot_error_scatter(
+                root / "errors.png",
+                {n: (_col(s, "init_position_m"), _col(s, "final_position_m"))
+                 for n, s in series.items() if s},
+                {n: (_col(s, "init_orientation_deg"), _col(s, "final_orientation_deg"))
+                 for n, s in series.items() if s},
+                title=f"{cfg.name}: initial vs final mean error ({len(ok)} fits)")
+            figures.append(("errors.png", "Initial against final mean error per flight, "
+                            "least-squares lines"))
+        j = series.get("joint") or series[names[0]]
+        if j:
+            plots.plot_turbine_recovery(
+                root / "turbine.png", _col(j, "init_model_points_m"),
+                _col(j, "final_model_points_m"),
+                {p: (np.abs(_col(j, f"init_{p}")), np.abs(_col(j, f"final_{p}")))
+                 for p in PARAM_COLUMNS})
+            figures.append(("turbine.png", "Turbine recovery: model-point error and each "
+                            "parameter's error before and after"))
+        if cfg.name == "roll":
+            plots.plot_roll(root / "roll.png", {
+                "initial": _col(series[names[0]], "init_roll_deg"),
+                **{n: _col(s, "final_roll_deg") for n, s in series.items() if s}})
+            figures.append(("roll.png", "Mean camera roll error per flight"))
+        if cfg.name == "basin":
+            b = summ["success"]
+            plots.plot_basin(root / "basin.png", np.array(b["edges"]),
+                             np.array([[np.nan if v is None else v for v in row]
+                                       for row in b["rate"]], dtype=np.float64),
+                             np.array(b["count"]))
+            figures.append(("basin.png", "Success rate against the initial error sizes"))
+    runs_path = root / RUNS_FILE
+    runs = json.loads(runs_path.read_text()) if runs_path.exists() else []
+    lines = [f"# turbinefit experiment: {cfg.name}", ""]
+    lines += [f"{cfg.flights} simulated flights of {cfg.keyframes} keyframes ({cfg.width}x"
+              f"{cfg.height} heat-maps, turbine {cfg.turbine}, sweep seed {cfg.seed}), "
+              f"{len(names)} configuration(s): {len(rows)} rows, {summ['failed']} failed. "
+              f"Initial pose error scale {cfg.pose_scale[0]:g}-{cfg.pose_scale[1]:g}, turbine "
+              f"error scale {cfg.theta_scale[0]:g}-{cfg.theta_scale[1]:g}, heat-map fault "
+              f"scale {cfg.heatmap_scale[0]:g}-{cfg.heatmap_scale[1]:g} (1 = the simulator's "
+              "defaults)" + (f", blade rotation offset {cfg.blade_rotation_offset_deg:g} deg"
+                             if cfg.blade_rotation_offset_deg else "") + ".", ""]
+    if runs:
+        last = runs[-1]
+        total_rows = sum(r["new_rows"] for r in runs)
+        total_s = sum(r["seconds"] for r in runs)
+        lines += [f"Run time: {total_s:.0f} s for {total_rows} rows in {len(runs)} run(s) "
+                  f"({total_rows / total_s if total_s else 0:.2f} rows/s; last run: "
+                  f"{last['backend']} backend, {last['workers']} worker(s)).", ""]
+    lines += ["| configuration | fits | position: final median / p90 [m] | reduction median "
+              "(p10 - p90) | orientation: final median / p90 [deg] | reduction median | "
+              "model points: final median [m] | reduction median |",
+              "|---|---|---|---|---|---|---|---|"]
+    for n in names:
+        c = summ["configs"][n]
+        p, o, m = c.get("position_m", {}), c.get("orientation_deg", {}), c.get("model_points_m", {})
+        lines.append(
+            f"| {n} | {c['flights']} | {_num(p.get('final_median'))} / {_num(p.get('final_p90'))}"
+            f" | {_pct(p.get('reduction_median_pct'))} ({_pct(p.get('reduction_p10_pct'))} - "
+            f"{_pct(p.get('reduction_p90_pct'))}) | {_num(o.get('final_median'))} / "
+            f"{_num(o.get('final_p90'))} | {_pct(o.get('reduction_median_pct'))} | "
+            f"{_num(m.get('final_median'))} | {_pct(m.get('reduction_median_pct'))} |")
+    lines.append("")
+    lines += _study_text(cfg, summ)
+    for fname, caption in figures:
+        lines += [f"![{caption}]({fname})", "", f"*{caption}.*", ""]
+    failed = [r for r in rows if r["status"] != "ok"]
+    if failed:
+        lines += ["## Failed fits", "", "| flight | configuration | reason |", "|---|---|---|"]
+        lines += [f"| {r['flight']} | {r['config']} | {r['reason']} |" for r in failed[:50]]
+        lines.append("")
+    write_text_atomic(root / "summary.json", json.dumps(summ, indent=2) + "\n")
+    return write_text_atomic(root / REPORT_FILE, "\n".join(lines))
+
+
+def _study_text(cfg: SweepConfig, s: dict[str, Any]) -> list[str]:
+    out: list[str] = []
+    ranked = s["ranking_by_median_final_position"]
+    if cfg.name == "unary" and ranked:
+        paper = "points corr, lines interp"
+        out += [f"Ranking by median final position error: {' > '.join(ranked)}. The paper "
+                f"found *{paper}* best; here it ranks {ranked.index(paper) + 1 if paper in ranked else '-'}"
+                f" of {len(ranked)}.", ""]
+    if cfg.name == "joint" and "joint" in s["configs"] and "pose-only" in s["configs"]:
+        j, p = s["configs"]["joint"], s["configs"]["pose-only"]
+        if j["flights"] and p["flights"]:
+            out += [f"Median final position error: joint {j['position_m']['final_median']:.3f} "
+                    f"m, pose-only {p['position_m']['final_median']:.3f} m.", ""]
+    if "turbine_recovery_median_pct" in s and cfg.name in ("turbine", "joint"):
+        out += [f"Median recovery of the introduced turbine error (1 - final / initial mean "
+                f"model-point error): **{s['turbine_recovery_median_pct']:.1f} %**.", "",
+                "| parameter | median abs. error before | after |", "|---|---|---|"]
+        out += [f"| {p} | {v['initial']:.3f} | {v['final']:.3f} |"
+                for p, v in s["param_abs_error_median"].items()]
+        out.append("")
+    if cfg.name == "roll" and s.get("roll_deg_mean_abs"):
+        r = s["roll_deg_mean_abs"]
+        out += ["Mean absolute camera roll error [deg]: " + ", ".join(
+            f"{k} {_num(v)}" for k, v in r.items()) + ".", ""]
+    if cfg.name == "basin" and s.get("success"):
+        b = s["success"]
+        e = b["edges"]
+        out += [f"Success: final position and model-point errors under {SUCCESS_POSITION_M} m "
+                f"(overall {_pct(100 * s['success_rate'] if s['success_rate'] is not None else None)}).", "",
+                "| scale | " + " | ".join(f"{e[i]:g}-{e[i + 1]:g}" for i in range(len(e) - 1)) + " |",
+                "|---|" + "---|" * (len(e) - 1),
+                "| turbine error | " + " | ".join(_pct(None if v is None else 100 * v)
+                                                  for v in b["by_theta_scale"]) + " |",
+                "| pose error | " + " | ".join(_pct(None if v is None else 100 * v)
+                                               for v in b["by_pose_scale"]) + " |", ""]
+    return out

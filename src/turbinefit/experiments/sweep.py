@@ -1,0 +1,471 @@
+"""Monte Carlo sweeps: many simulated flights, each fitted under several configurations.
+
+A sweep is described by a :class:`SweepConfig` (YAML-able, every key checked before any
+work). Its flights are drawn from the sweep's seed: flight ``i`` has its own simulation
+seed and its own noise scales, uniform in the configured ranges, so the same sweep always
+gives the same flights and any subset of them can be run anywhere. Each flight is
+simulated once in memory and fitted under every configuration; each (flight,
+configuration) gives one row of the tidy table ``rows.csv``:
+
+* the flight: index, seed, keyframes, turbine, the pose / turbine / heat-map noise
+  scales, the blade-rotation offset;
+* the outcome: ``status`` (``ok`` or ``error``) and ``reason``;
+* initial and final errors: mean position [m], orientation [deg], camera roll [deg],
+  model points [m], each turbine parameter (m, deg);
+* the solver: initial and final cost, iterations, rounds, termination, wall time [s].
+
+Rows are appended (and flushed) flight by flight, so an interrupted sweep resumes from
+the table without redoing finished rows; a partly written last line is ignored. Flights
+run in parallel on all local cores by default (processes, one solver thread each), or on
+a Ray cluster (``backend="ray"``; ``ray.init()`` reads the cluster address from
+``RAY_ADDRESS``). A flight whose fit raises is a row with its reason, not a failure of the
+sweep.
+
+Written by hand: the sweep is a plain map over independent tasks, which the standard
+library's process pool (and Ray's task API, when asked) run; no experiment framework is
+needed for resumable CSV rows.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from turbinefit.errors import InputError
+from turbinefit.eval.metrics import accuracy
+from turbinefit.geometry.se3 import SE3, quat_conjugate, quat_log, quat_multiply
+from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
+from turbinefit.sim.scenario import SimConfig, simulate_flight
+from turbinefit.solver.config import PRESETS, FitConfig
+from turbinefit.solver.fit import fit
+from turbinefit.turbine.model import TurbineParams
+
+#: Names of the turbine parameters as table columns, with their units.
+PARAM_COLUMNS = tuple(
+    f"{n}_{'deg' if a else 'm'}" for n, a in zip(TurbineParams.NAMES, TurbineParams.ANGULAR,
+                                                   strict=True))
+#: Error columns measured before (``init_``) and after (``final_``) each fit.
+ERROR_COLUMNS = ("position_m", "orientation_deg", "roll_deg", "model_points_m", *PARAM_COLUMNS)
+#: The table's columns, in order.
+COLUMNS: tuple[str, ...] = (
+    "flight", "config", "status", "reason", "seed", "keyframes", "turbine", "pose_scale",
+    "theta_scale", "heatmap_scale", "blade_rotation_offset_deg", "second_turbine",
+    *(f"init_{c}" for c in ERROR_COLUMNS), *(f"final_{c}" for c in ERROR_COLUMNS),
+    "initial_cost", "final_cost", "iterations", "rounds", "termination", "time_s",
+)
+ROWS_FILE = "rows.csv"
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A Monte Carlo sweep. Ranges are ``(low, high)``, sampled uniformly per flight.
+
+    Attributes:
+        name: a label (the study's name).
+        flights: number of simulated flights.
+        keyframes: keyframes per flight.
+        seed: seed of the sweep (flight seeds and noise scales derive from it).
+        width, height: heat-map size [px].
+        turbine: simulator turbine preset, or ``random``.
+        pose_scale: range of the GPS/IMU drift, in units of the default (2 m, 2 deg RMS at
+            the end of the flight); 0 = exact poses.
+        theta_scale: range of the initial turbine error, in units of the default sigmas
+            (1 m, 1 m, 2 m, 5 deg, 0.5 m, 5 deg, 2 m).
+        heatmap_scale: range of the heat-map faults, in units of the default (pixel noise,
+            missed parts, false responses, peak jitter); 0 = ideal heat-maps.
+        blade_rotation_offset_deg: added to the initial blade rotation (the roll study).
+        second_turbine: a neighbouring turbine in view.
+        configs: name -> fit options (a mapping of :class:`FitConfig` fields, optionally
+            with ``preset``: a name of :data:`turbinefit.solver.config.PRESETS` to start
+            from).
+    """
+
+    name: str = "sweep"
+    flights: int = 20
+    keyframes: int = 100
+    seed: int = 0
+    width: int = 320
+    height: int = 240
+    turbine: str = "nrel5mw"
+    pose_scale: tuple[float, float] = (0.0, 2.0)
+    theta_scale: tuple[float, float] = (0.0, 2.0)
+    heatmap_scale: tuple[float, float] = (1.0, 1.0)
+    blade_rotation_offset_deg: float = 0.0
+    second_turbine: bool = False
+    configs: dict[str, dict[str, Any]] = field(
+        default_factory=lambda: {"paper-best": {"preset": "paper-best"}})
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"{name}: {why} (got {getattr(self, name)!r})")
+
+        for name in ("flights", "keyframes", "width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if name == "keyframes" else 1):
+                raise bad(name, "must be a whole number >= " + ("2" if name == "keyframes" else "1"))
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise bad("seed", "must be a whole number >= 0")
+        for name in ("pose_scale", "theta_scale", "heatmap_scale"):
+            v = getattr(self, name)
+            if (not isinstance(v, tuple) or len(v) != 2
+                    or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                               and math.isfinite(x) and x >= 0 for x in v) or v[0] > v[1]):
+                raise bad(name, "must be [low, high] with 0 <= low <= high")
+        if not (isinstance(self.blade_rotation_offset_deg, int | float)
+                and math.isfinite(self.blade_rotation_offset_deg)):
+            raise bad("blade_rotation_offset_deg", "must be a finite number")
+        if not isinstance(self.second_turbine, bool):
+            raise bad("second_turbine", "must be true or false")
+        if not isinstance(self.configs, dict) or not self.configs:
+            raise bad("configs", "must be a non-empty mapping of name -> fit options")
+        for name in self.configs:
+            fit_config(self.configs, name)  # raises on unknown options or bad values
+        SimConfig(n_keyframes=self.keyframes, width=self.width, height=self.height,
+                  turbine=self.turbine)  # raises on an unknown turbine
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        for k in ("pose_scale", "theta_scale", "heatmap_scale"):
+            d[k] = list(d[k])
+        return d
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> SweepConfig:
+        """Build from a (YAML) mapping; unknown keys or bad values raise ValueError."""
+        names = {f.name for f in dataclasses.fields(SweepConfig)}
+        unknown = sorted(set(map(str, d)) - names)
+        if unknown:
+            raise ValueError(f"unknown sweep option(s): {', '.join(unknown)}")
+        d = dict(d)
+        for k in ("pose_scale", "theta_scale", "heatmap_scale"):
+            if isinstance(d.get(k), list):
+                d[k] = tuple(d[k])
+            elif isinstance(d.get(k), int | float) and not isinstance(d.get(k), bool):
+                d[k] = (d[k], d[k])
+        return SweepConfig(**d)
+
+
+def fit_config(configs: dict[str, dict[str, Any]], name: str) -> FitConfig:
+    """The :class:`FitConfig` of configuration ``name`` (ValueError naming it if bad)."""
+    opts = configs[name]
+    if not isinstance(opts, dict):
+        raise ValueError(f"configs.{name}: must be a mapping of fit options")
+    opts = dict(opts)
+    base = FitConfig()
+    if "preset" in opts:
+        p = opts.pop("preset")
+        if p not in PRESETS:
+            raise ValueError(f"configs.{name}.preset: unknown preset {p!r} (choose from "
+                             f"{', '.join(PRESETS)})")
+        base = PRESETS[p]
+    try:
+        return FitConfig.from_dict({**base.to_dict(), **opts})
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"configs.{name}: {exc}") from None
+
+
+@dataclass(frozen=True)
+class FlightSpec:
+    """One flight of a sweep (everything needed to simulate it anywhere)."""
+
+    index: int
+    seed: int
+    pose_scale: float
+    theta_scale: float
+    heatmap_scale: float
+
+
+def flight_specs(cfg: SweepConfig) -> list[FlightSpec]:
+    """The sweep's flights, deterministic from its seed (flight i does not depend on how
+    many flights there are)."""
+    out = []
+    for i in range(cfg.flights):
+        rng = np.random.default_rng([cfg.seed, i])
+        seed = int(rng.integers(0, 2**31 - 1))
+        scales = [float(rng.uniform(lo, hi)) for lo, hi in
+                  (cfg.pose_scale, cfg.theta_scale, cfg.heatmap_scale)]
+        out.append(FlightSpec(i, seed, *scales))
+    return out
+
+
+def _sim_config(cfg: SweepConfig, spec: FlightSpec) -> SimConfig:
+    base = SimConfig()
+    s = spec.heatmap_scale
+    hn = base.heatmap_noise
+    noise = dataclasses.replace(hn, pixel_sigma=hn.pixel_sigma * s,
+                                miss_prob=min(hn.miss_prob * s, 0.9),
+                                spurious_rate=hn.spurious_rate * s,
+                                amplitude_jitter=min(hn.amplitude_jitter * s, 0.9))
+    return SimConfig(
+        n_keyframes=cfg.keyframes, seed=spec.seed, width=cfg.width, height=cfg.height,
+        turbine=cfg.turbine, heatmap_noise=noise,
+        drift_pos_m=base.drift_pos_m * spec.pose_scale,
+        drift_rot_deg=base.drift_rot_deg * spec.pose_scale,
+        turbine_sigma=tuple(x * spec.theta_scale for x in DEFAULT_TURBINE_SIGMA),
+        second_turbine=cfg.second_turbine)
+
+
+def roll_errors_deg(estimate: SE3, reference: SE3) -> np.ndarray:
+    """Per-keyframe rotation error about the camera's optical axis (z) [deg], signed: the
+    z component of ``Log(R_ref^T R_est)``."""
+    dq = quat_multiply(quat_conjugate(reference.wxyz), estimate.wxyz)
+    return np.degrees(quat_log(dq)[..., 2])
+
+
+def _errors(prefix: str, poses: SE3, turbine: TurbineParams, gt_poses: SE3,
+            gt_turbine: TurbineParams, geometry: Any) -> dict[str, float]:
+    a = accuracy(poses, turbine, gt_poses, gt_turbine, geometry)
+    out = {f"{prefix}position_m": a.position_error_m,
+           f"{prefix}orientation_deg": a.orientation_error_deg,
+           f"{prefix}roll_deg": float(np.mean(np.abs(roll_errors_deg(poses, gt_poses)))),
+           f"{prefix}model_points_m": a.model_point_error_m}
+    for col, name in zip(PARAM_COLUMNS, TurbineParams.NAMES, strict=True):
+        out[f"{prefix}{col}"] = a.param_errors[name]
+    return out
+
+
+def run_flight(cfg: SweepConfig, spec: FlightSpec, configs: list[str]) -> list[dict[str, Any]]:
+    """Simulate flight ``spec`` and fit it under each of ``configs``: one row each. Never
+    raises for a failing fit or simulation: the row says why."""
+    base: dict[str, Any] = {
+        "flight": spec.index, "seed": spec.seed, "keyframes": cfg.keyframes,
+        "turbine": cfg.turbine, "pose_scale": spec.pose_scale,
+        "theta_scale": spec.theta_scale, "heatmap_scale": spec.heatmap_scale,
+        "blade_rotation_offset_deg": cfg.blade_rotation_offset_deg,
+        "second_turbine": cfg.second_turbine}
+    try:
+        flight = simulate_flight(_sim_config(cfg, spec))
+        if cfg.blade_rotation_offset_deg:
+            v = flight.turbine.to_vector()
+            v[5] += math.radians(cfg.blade_rotation_offset_deg)
+            flight = dataclasses.replace(flight, turbine=TurbineParams.from_vector(v))
+    except Exception as exc:  # a row, not a crash of the sweep
+        return [{**base, "config": c, "status": "error",
+                 "reason": f"simulation failed: {type(exc).__name__}: {exc}"} for c in configs]
+    assert flight.gt_world_T_cam is not None and flight.gt_turbine is not None
+    rows = []
+    for name in configs:
+        fc = fit_config(cfg.configs, name)
+        row = {**base, "config": name}
+        row.update(_errors("init_", flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
+                           flight.gt_turbine, fc.geometry))
+        t0 = time.perf_counter()
+        try:
+            res = fit(flight, fc)
+            errs = _errors("final_", res.world_T_cam, res.turbine, flight.gt_world_T_cam,
+                           flight.gt_turbine, fc.geometry)
+            bad = [k for k, v in errs.items() if not math.isfinite(v)]
+            if bad or not math.isfinite(res.final_cost):
+                raise FloatingPointError(f"non-finite result ({', '.join(bad) or 'cost'})")
+            row.update(errs)
+            row.update(status="ok", reason="", initial_cost=res.initial_cost,
+                       final_cost=res.final_cost, iterations=res.iterations,
+                       rounds=res.rounds, termination=res.termination)
+        except Exception as exc:
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            row.update(status="error", reason=f"{type(exc).__name__}: {exc} "
+                       f"({Path(where.filename).name}:{where.lineno})")
+        row["time_s"] = time.perf_counter() - t0
+        rows.append(row)
+    return rows
+
+
+# ---------------------------------------------------------------------------------------
+# the table
+# ---------------------------------------------------------------------------------------
+def _format(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def format_rows(rows: list[dict[str, Any]]) -> str:
+    """CSV lines (no header) of ``rows`` in :data:`COLUMNS` order."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    for r in rows:
+        w.writerow([_format(r.get(c)) for c in COLUMNS])
+    return buf.getvalue()
+
+
+_INT = {"flight", "seed", "keyframes", "iterations", "rounds"}
+_STR = {"config", "status", "reason", "turbine", "termination"}
+
+
+def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The rows of a sweep table, typed (numbers as float/int, empty as None). A last line
+    cut short by an interruption is skipped; any other malformed line is an InputError."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("sweep table not found", p) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the sweep table: {exc}", p) from None
+    lines = text.splitlines(keepends=True)
+    if not lines:
+        raise InputError("empty sweep table (no header)", p)
+    header = next(csv.reader([lines[0]]))
+    if tuple(header) != COLUMNS:
+        raise InputError("not a turbinefit sweep table (unexpected columns)", p, 1)
+    out = []
+    for n, line in enumerate(lines[1:], start=2):
+        last = n == len(lines)
+        fields = next(csv.reader([line]), [])
+        if len(fields) != len(COLUMNS) or (last and not line.endswith("\n")):
+            if last:
+                break  # interrupted while writing: the flight is redone
+            raise InputError(f"expected {len(COLUMNS)} fields, found {len(fields)}", p, n)
+        row: dict[str, Any] = {}
+        for c, v in zip(COLUMNS, fields, strict=True):
+            if c in _STR:
+                row[c] = v
+            elif v == "":
+                row[c] = None
+            elif v in ("true", "false"):
+                row[c] = v == "true"
+            else:
+                try:
+                    row[c] = int(v) if c in _INT else float(v)
+                except ValueError:
+                    raise InputError(f"{c}: not a number ({v!r})", p, n) from None
+        out.append(row)
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# running
+# ---------------------------------------------------------------------------------------
+def _run_local(tasks: list[FlightSpec], cfg: SweepConfig, configs: list[str],
+               workers: int) -> Iterator[list[dict[str, Any]]]:
+    if workers <= 1:
+        for spec in tasks:
+            yield run_flight(cfg, spec, configs)
+        return
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    # one solver thread per process: two processes that each use both cores slow each
+    # other several times over (measured on the tracker). The workers are spawned, so they
+    # read the variable when their OpenMP runtime loads.
+    ctx = mp.get_context("spawn")
+    saved = os.environ.get("OMP_NUM_THREADS")
+    os.environ["OMP_NUM_THREADS"] = "1"
+    try:
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            futures = [pool.submit(run_flight, cfg, spec, configs) for spec in tasks]
+            try:
+                for fut in cf.as_completed(futures):
+                    yield fut.result()
+            except BaseException:
+                for fut in futures:
+                    fut.cancel()
+                raise
+    finally:
+        if saved is None:
+            os.environ.pop("OMP_NUM_THREADS", None)
+        else:
+            os.environ["OMP_NUM_THREADS"] = saved
+
+
+def _run_ray(tasks: list[FlightSpec], cfg: SweepConfig,
+             configs: list[str]) -> Iterator[list[dict[str, Any]]]:
+    try:
+        import ray
+    except ImportError:
+        raise InputError("the ray backend needs Ray: pip install 'ray[default]'",
+                         field="--backend") from None
+    if not ray.is_initialized():
+        ray.init(runtime_env={"env_vars": {"OMP_NUM_THREADS": "1"}})  # RAY_ADDRESS, if set
+    remote = ray.remote(run_flight)
+    pending = [remote.remote(cfg, spec, configs) for spec in tasks]
+    while pending:
+        done, pending = ray.wait(pending, num_returns=1)
+        yield ray.get(done[0])
+
+
+@dataclass
+class SweepReport:
+    """What :func:`run_sweep` did: ``rows`` (all, old and new), how many ``new_rows`` it
+    ran, in ``seconds``."""
+
+    rows: list[dict[str, Any]]
+    new_rows: int
+    seconds: float
+
+
+def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str = "local",
+              workers: int | None = None,
+              progress: Callable[[int, int], None] | None = None) -> SweepReport:
+    """Run (or resume) the sweep into ``out_dir/rows.csv``.
+
+    Rows already in the table are kept and not rerun (the table must be from the same
+    sweep: ``out_dir/sweep.yaml`` is compared with ``cfg``). ``progress(done, total)`` is
+    called after each flight (flights, not rows).
+    """
+    import yaml
+
+    from turbinefit.io.atomic import write_text_atomic
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sweep_file = out / "sweep.yaml"
+    text = yaml.safe_dump(cfg.to_dict(), sort_keys=False)
+    if sweep_file.exists():
+        try:
+            old = SweepConfig.from_dict(yaml.safe_load(sweep_file.read_text()))
+        except (ValueError, TypeError, yaml.YAMLError) as exc:
+            raise InputError(f"not a sweep configuration: {exc}", sweep_file) from None
+        if old != cfg:
+            raise InputError("holds a different sweep; use another output folder",
+                             sweep_file)
+    else:
+        write_text_atomic(sweep_file, text)
+    table = out / ROWS_FILE
+    rows: list[dict[str, Any]] = read_rows(table) if table.exists() else []
+    done = {(r["flight"], r["config"]) for r in rows}
+    names = list(cfg.configs)
+    specs = flight_specs(cfg)
+    todo = [s for s in specs if any((s.index, c) not in done for c in names)]
+    # rewrite the table without a cut-off last line, then append flight by flight
+    write_text_atomic(table, ",".join(COLUMNS) + "\n" + format_rows(rows))
+    t0 = time.perf_counter()
+    new = 0
+    total = len(specs)
+    if progress is not None:
+        progress(total - len(todo), total)
+    if backend == "local":
+        results = _run_local(todo, cfg, names, workers or os.cpu_count() or 1)
+    elif backend == "ray":
+        results = _run_ray(todo, cfg, names)
+    else:
+        raise InputError(f"unknown backend {backend!r} (choose local or ray)", field="--backend")
+    with open(table, "a", encoding="utf-8") as f:
+        finished = total - len(todo)
+        for flight_rows in results:
+            fresh = [r for r in flight_rows if (r["flight"], r["config"]) not in done]
+            f.write(format_rows(fresh))
+            f.flush()
+            rows.extend(fresh)
+            new += len(fresh)
+            finished += 1
+            if progress is not None:
+                progress(finished, total)
+    rows.sort(key=lambda r: (r["flight"], names.index(r["config"])
+                             if r["config"] in names else len(names)))
+    return SweepReport(rows, new, time.perf_counter() - t0)
