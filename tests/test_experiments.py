@@ -205,6 +205,8 @@ def test_cli_experiment_and_report(tmp_path: Path, capsys: pytest.CaptureFixture
     # `report` on a parent folder rebuilds every study below it
     shutil.copytree(out, tmp_path / "all" / "roll")
     assert main(["report", str(tmp_path / "all")]) == 0
+    index = (tmp_path / "all" / "report.md").read_text()
+    assert "| roll | 2 x 2 |" in index and "(roll/report.md)" in index
 
 
 def test_roll_artefact_pose_only_rolls_joint_does_not(tmp_path: Path) -> None:
@@ -238,3 +240,35 @@ def test_report_rebuild_is_deterministic(tmp_path: Path) -> None:
     first = (out / "report.md").read_text()
     write_report(out)
     assert (out / "report.md").read_text() == first
+
+
+def test_ray_backend_gives_the_same_rows(tmp_path: Path) -> None:
+    """The Ray backend on a local Ray instance (the cluster case differs only in
+    ``RAY_ADDRESS``). Needs ``pip install ray``; skipped without it."""
+    ray = pytest.importorskip("ray")
+    cfg = tiny("turbine", flights=2)
+    try:
+        b = run_sweep(cfg, tmp_path / "ray", backend="ray").rows
+    finally:
+        ray.shutdown()
+    a = run_sweep(cfg, tmp_path / "local", workers=1).rows
+    keys = [c for c in COLUMNS if c != "time_s"]
+    assert [[r[k] for k in keys] for r in a] == [[r[k] for k in keys] for r in b]
+
+
+def test_ray_backend_without_ray_is_one_clear_error(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_ray(name: str, *args: object, **kw: object) -> object:
+        if name == "ray":
+            raise ImportError("No module named 'ray'")
+        return real_import(name, *args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(builtins, "__import__", no_ray)
+    from turbinefit.errors import InputError
+
+    with pytest.raises(InputError, match="pip install"):
+        run_sweep(tiny("turbine", flights=1), tmp_path / "s", backend="ray")

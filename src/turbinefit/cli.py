@@ -625,6 +625,12 @@ def _cmd_experiment(args: argparse.Namespace) -> int:
             rate = rep.new_rows / rep.seconds if rep.seconds > 0 else 0.0
             print(f"{st}: {len(rep.rows)} rows ({rep.new_rows} new in {rep.seconds:.0f} s, "
                   f"{rate:.2f} rows/s), {failed} failed; report {out / 'report.md'}")
+    if args.study == "all":
+        from turbinefit.experiments.studies import write_index
+
+        index = write_index(root)
+        if not args.quiet:
+            print(f"index {index}")
     return 0
 
 
@@ -641,8 +647,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if not subs:
         raise InputError("not an experiment folder (no sweep.yaml in it or its sub-folders)",
                          folder)
+    from turbinefit.experiments.studies import write_index
+
     for p in subs:
         print(f"wrote {write_report(p)}")
+    print(f"wrote {write_index(folder)}")
     return 0
 
 

@@ -92,10 +92,11 @@ def run_study(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     rep = run_sweep(cfg, out, backend=backend, workers=workers, progress=progress)
     runs_path = out / RUNS_FILE
     runs = json.loads(runs_path.read_text()) if runs_path.exists() else []
-    runs.append({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "backend": backend,
-                 "workers": workers or os.cpu_count(), "new_rows": rep.new_rows,
-                 "seconds": round(rep.seconds, 2),
-                 "rows_per_s": round(rep.new_rows / rep.seconds, 3) if rep.seconds > 0 else None})
+    if rep.new_rows:  # a resumed sweep with nothing left to do is not a run
+        runs.append({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "backend": backend,
+                     "workers": workers or os.cpu_count(), "new_rows": rep.new_rows,
+                     "seconds": round(rep.seconds, 2),
+                     "rows_per_s": round(rep.new_rows / rep.seconds, 3) if rep.seconds > 0 else None})
     from turbinefit.io.atomic import write_text_atomic
 
     write_text_atomic(runs_path, json.dumps(runs, indent=2) + "\n")
@@ -356,3 +357,35 @@ def _study_text(cfg: SweepConfig, s: dict[str, Any]) -> list[str]:
                 "| pose error | " + " | ".join(_pct(None if v is None else 100 * v)
                                                for v in b["by_pose_scale"]) + " |", ""]
     return out
+
+
+def write_index(root: str | os.PathLike[str]) -> Path:
+    """``root/report.md``: one line of headline figures per study folder below ``root``,
+    linking each study's own report (what ``experiment all`` and ``report`` write)."""
+    from turbinefit.io.atomic import write_text_atomic
+
+    base = Path(root)
+    lines = ["# turbinefit experiments", "", "| study | flights x configurations | headline | "
+             "report |", "|---|---|---|---|"]
+    for sub in sorted(p for p in base.iterdir() if (p / "sweep.yaml").is_file()):
+        cfg, rows = load_study(sub)
+        s = summarize(cfg, rows)
+        head = ""
+        if cfg.name == "unary":
+            head = "best by median final position: " + (s["ranking_by_median_final_position"]
+                                                        or ["-"])[0]
+        elif cfg.name in ("joint", "turbine") and "turbine_recovery_median_pct" in s:
+            head = f"median turbine-error recovery {s['turbine_recovery_median_pct']:.1f} %"
+            if cfg.name == "joint" and s["configs"].get("pose-only", {}).get("flights"):
+                head += (f"; median final position joint "
+                         f"{s['configs']['joint']['position_m']['final_median']:.3f} m, "
+                         f"pose-only {s['configs']['pose-only']['position_m']['final_median']:.3f} m")
+        elif cfg.name == "roll" and s.get("roll_deg_mean_abs"):
+            head = "mean roll error " + ", ".join(f"{k} {_num(v)} deg"
+                                                  for k, v in s["roll_deg_mean_abs"].items())
+        elif cfg.name == "basin" and s.get("success_rate") is not None:
+            head = f"success rate {100 * s['success_rate']:.0f} %"
+        lines.append(f"| {cfg.name} | {cfg.flights} x {len(cfg.configs)} | {head} | "
+                     f"[{sub.name}/{REPORT_FILE}]({sub.name}/{REPORT_FILE}) |")
+    lines.append("")
+    return write_text_atomic(base / REPORT_FILE, "\n".join(lines))
