@@ -272,3 +272,34 @@ def test_ray_backend_without_ray_is_one_clear_error(tmp_path: Path,
 
     with pytest.raises(InputError, match="pip install"):
         run_sweep(tiny("turbine", flights=1), tmp_path / "s", backend="ray")
+
+
+def test_quality_and_length_studies(tmp_path: Path) -> None:
+    q = tiny("quality", flights=4)
+    specs = flight_specs(q)
+    assert all(0.5 <= s.blur_scale <= 3.0 and 0 <= s.heatmap_scale <= 4 for s in specs)
+    rep = run_study(q, tmp_path / "q", workers=1)
+    assert len(rep.rows) == 8 and all(r["status"] == "ok" for r in rep.rows)
+    assert {r["second_turbine"] for r in rep.rows} <= {True, False}
+    report = (tmp_path / "q" / "report.md").read_text()
+    assert "by heat-map blob width" in report and (tmp_path / "q" / "factors.png").is_file()
+    import dataclasses
+
+    n = dataclasses.replace(study_config("length"), flights=6, width=160, height=120,
+                            keyframes=8, keyframes_max=30)
+    ks = [s.keyframes for s in flight_specs(n)]
+    assert all(8 <= k <= 30 for k in ks) and len(set(ks)) > 1
+    rows = run_sweep(n, tmp_path / "n", workers=1).rows
+    assert [r["keyframes"] for r in rows] == ks
+    s = summarize(n, rows)["factors"]["keyframes"]["joint"]
+    assert sum(b["flights"] for b in s) == sum(25 <= k < 400 for k in ks)
+
+
+def test_second_turbine_fraction() -> None:
+    specs = flight_specs(tiny(flights=200, second_turbine=0.5))
+    share = np.mean([s.second_turbine for s in specs])
+    assert 0.4 < share < 0.6
+    assert not any(s.second_turbine for s in flight_specs(tiny(flights=20)))
+    assert SweepConfig.from_dict({**tiny().to_dict(), "second_turbine": True}).second_turbine == 1.0
+    with pytest.raises(ValueError, match="second_turbine"):
+        SweepConfig.from_dict({**tiny().to_dict(), "second_turbine": 1.5})

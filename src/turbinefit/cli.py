@@ -185,19 +185,21 @@ def build_parser() -> argparse.ArgumentParser:
             "  turbine  recovery of the turbine parameters (Fig. 6)\n"
             "  roll     a wrong blade rotation: false roll of pose-only (Fig. 7)\n"
             "  basin    success rate against the size of the initial errors\n"
+            "  quality  heat-map faults, blur and a second turbine in view\n"
+            "  length   flight length (25-400 keyframes)\n"
             "  all      all of them, into OUT_DIR/<study>/\n\n"
             "Re-running the same command resumes without redoing finished rows. Flights run\n"
             "on all local cores, or on a Ray cluster with --backend ray (address from\n"
             "RAY_ADDRESS; needs `pip install ray`)."),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     e.add_argument("study", metavar="STUDY", choices=["unary", "joint", "turbine", "roll",
-                                                        "basin", "all"],
-                   help="unary, joint, turbine, roll, basin or all")
+                                                        "basin", "quality", "length", "all"],
+                   help="unary, joint, turbine, roll, basin, quality, length or all")
     e.add_argument("--flights", type=_positive_int, default=None,
                    help="simulated flights (default: the study's: 200 for unary, joint and "
-                   "turbine, 20 for roll, 120 for basin)")
+                   "turbine, 20 for roll, 120 for basin and quality, 60 for length)")
     e.add_argument("--keyframes", type=_positive_int, default=100, help="keyframes per flight "
-                   "(default: 100)")
+                   "(default: 100; the length study draws 25-400)")
     e.add_argument("--seed", type=_seed, default=0, help="sweep seed (default: 0)")
     e.add_argument("--config", type=Path, default=None,
                    help="a sweep YAML (the sweep.yaml of a run) instead of the study's; "

@@ -737,3 +737,32 @@ def plot_basin(path: str | os.PathLike[str], edges: ArrayLike, rate: ArrayLike,
     ax.set_title("Convergence basin", fontsize=11)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_binned(path: str | os.PathLike[str],
+                panels: Sequence[tuple[str, Sequence[str], dict[str, Sequence[float | None]]]],
+                ylabel: str) -> Path:
+    """One panel per factor: a binned statistic (e.g. the median final error) per
+    configuration against the factor's bins. ``panels`` are (x label, bin labels,
+    {configuration: one value per bin, None where the bin is empty}).
+
+    Returns:
+        ``Path(path)``.
+    """
+    n = max(len(panels), 1)
+    fig = _new_figure(4.6 * n, 4.2)
+    for k, (label, ticks, series) in enumerate(panels):
+        ax = fig.add_subplot(1, n, k + 1)
+        x = np.arange(len(ticks))
+        for j, (name, values) in enumerate(series.items()):
+            v = np.array([np.nan if y is None else y for y in values], dtype=np.float64)
+            ax.plot(x, v, "o-", color=_PALETTE[j % len(_PALETTE)], label=name)
+        ax.set_xticks(x, list(ticks))
+        ax.set_xlabel(label)
+        if k == 0:
+            ax.set_ylabel(ylabel)
+        ax.set_ylim(bottom=0.0)
+        ax.grid(True, color="0.9", lw=0.6)
+        ax.legend(fontsize=7.5)
+    fig.tight_layout()
+    return _save(fig, path)

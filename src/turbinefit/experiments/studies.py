@@ -15,16 +15,21 @@ Studies:
 * ``roll`` (Fig. 7): a wrong blade rotation (+10 deg) with exact GPS/IMU attitude; the
   camera roll error left by pose-only and by joint optimisation;
 * ``basin``: success rate (final position and model-point errors under 0.5 m) against the
-  size of the initial turbine and pose errors, up to 6x the defaults.
+  size of the initial turbine and pose errors, up to 6x the defaults;
+* ``quality``: heat-map quality: faults (pixel noise, missed parts, false responses, peak
+  jitter) up to 4x the defaults, blob and ridge width 0.5-3x, a second turbine in view on
+  half the flights; points corr and interp, lines interp;
+* ``length``: flight length, 25 to 400 keyframes along the same inspection path.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +47,7 @@ from turbinefit.experiments.sweep import (
 )
 
 #: Study names, in the order ``all`` runs them.
-STUDIES = ("unary", "joint", "turbine", "roll", "basin")
+STUDIES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length")
 #: The paper's four unary configurations (points, lines).
 UNARY = {
     "points corr, lines interp": {"points": "corr", "lines": "interp"},
@@ -79,6 +84,15 @@ def study_config(study: str, flights: int | None = None, keyframes: int = 100,
         return SweepConfig(name=study, flights=flights or 120, keyframes=keyframes, seed=seed,
                            pose_scale=(0.0, 6.0), theta_scale=(0.0, 6.0),
                            configs={"joint": {"preset": "paper-best"}})
+    if study == "quality":
+        return SweepConfig(name=study, flights=flights or 120, keyframes=keyframes, seed=seed,
+                           pose_scale=(0.5, 1.5), theta_scale=(0.5, 1.5),
+                           heatmap_scale=(0.0, 4.0), blur_scale=(0.5, 3.0), second_turbine=0.5,
+                           configs={k: dict(UNARY[k]) for k in
+                                    ("points corr, lines interp", "points interp, lines interp")})
+    if study == "length":
+        return SweepConfig(name=study, flights=flights or 60, keyframes=25, keyframes_max=400,
+                           seed=seed, configs={"joint": {"preset": "paper-best"}})
     raise InputError(f"unknown study {study!r} (choose from {', '.join(STUDIES)}, all)",
                      field="study")
 
@@ -169,10 +183,45 @@ def summarize(cfg: SweepConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
             "initial": float(np.mean(_col(_ok(rows), "init_roll_deg"))) if _ok(rows) else None,
             **{n: float(np.mean(_col(_ok(rows, n), "final_roll_deg")))
                for n in cfg.configs if _ok(rows, n)}}
+    if cfg.name in FACTORS:
+        out["factors"] = {
+            key: {name: binned_medians([r for r in rows if r["config"] == name], key, edges)
+                  for name in cfg.configs}
+            for key, _, edges in FACTORS[cfg.name]}
     if cfg.name == "basin":
         ok = _ok(rows)
         out["success"] = basin_table(rows)
         out["success_rate"] = (float(np.mean([_success(r) for r in ok])) if ok else None)
+    return out
+
+
+#: Bins of the quality and length studies: (row key, axis label, bin edges).
+FACTORS: dict[str, list[tuple[str, str, tuple[float, ...]]]] = {
+    "quality": [("heatmap_scale", "heat-map faults (x default)", (0, 1, 2, 3, 4.0001)),
+                ("blur_scale", "heat-map blob width (x default)", (0.5, 1, 1.5, 2, 2.5, 3.0001)),
+                ("second_turbine", "second turbine in view", (-0.5, 0.5, 1.5))],
+    "length": [("keyframes", "keyframes per flight", (25, 50, 100, 200, 400.0001))],
+}
+
+
+def _bin_labels(key: str, edges: tuple[float, ...]) -> list[str]:
+    if key == "second_turbine":
+        return ["no", "yes"]
+    return [f"{lo:g}-{round(hi, 2):g}" for lo, hi in itertools.pairwise(edges)]
+
+
+def binned_medians(rows: list[dict[str, Any]], key: str, edges: tuple[float, ...],
+                   metric: str = "final_position_m") -> list[dict[str, Any]]:
+    """Per bin of ``key``: flight count, median and 90th percentile of ``metric`` (failed
+    fits left out and counted)."""
+    out = []
+    for lo, hi in itertools.pairwise(edges):
+        inbin = [r for r in rows if lo <= float(r[key]) < hi]
+        ok = [r[metric] for r in inbin if r["status"] == "ok"]
+        out.append({"low": lo, "high": hi, "flights": len(inbin),
+                    "failed": len(inbin) - len(ok),
+                    "median": float(np.median(ok)) if ok else None,
+                    "p90": float(np.percentile(ok, 90)) if ok else None})
     return out
 
 
@@ -270,6 +319,16 @@ def write_report(folder: str | os.PathLike[str]) -> Path:
                 "initial": _col(series[names[0]], "init_roll_deg"),
                 **{n: _col(s, "final_roll_deg") for n, s in series.items() if s}})
             figures.append(("roll.png", "Mean camera roll error per flight"))
+        if cfg.name in FACTORS:
+            panels: list[tuple[str, Sequence[str], dict[str, Sequence[float | None]]]] = []
+            for key, label, edges in FACTORS[cfg.name]:
+                f = summ["factors"][key]
+                ticks = _bin_labels(key, edges)
+                panels.append((label, ticks, {n: [b["median"] for b in f[n]] for n in names}))
+            plots.plot_binned(root / "factors.png", panels,
+                              ylabel="median final position error [m]")
+            figures.append(("factors.png", "Median final position error against "
+                            + ", ".join(lab for _, lab, _ in FACTORS[cfg.name])))
         if cfg.name == "basin":
             b = summ["success"]
             plots.plot_basin(root / "basin.png", np.array(b["edges"]),
@@ -345,6 +404,18 @@ def _study_text(cfg: SweepConfig, s: dict[str, Any]) -> list[str]:
         r = s["roll_deg_mean_abs"]
         out += ["Mean absolute camera roll error [deg]: " + ", ".join(
             f"{k} {_num(v)}" for k, v in r.items()) + ".", ""]
+    if cfg.name in FACTORS and s.get("factors"):
+        for key, label, edges in FACTORS[cfg.name]:
+            f = s["factors"][key]
+            cols = _bin_labels(key, edges)
+            out += [f"Median (90th percentile) final position error [m] by {label}:", "",
+                    "| configuration | " + " | ".join(cols) + " |",
+                    "|---|" + "---|" * len(cols)]
+            for n, bins in f.items():
+                out.append(f"| {n} | " + " | ".join(
+                    f"{_num(b['median'])} ({_num(b['p90'])}), n={b['flights']}" for b in bins)
+                    + " |")
+            out.append("")
     if cfg.name == "basin" and s.get("success"):
         b = s["success"]
         e = b["edges"]

@@ -7,8 +7,8 @@ gives the same flights and any subset of them can be run anywhere. Each flight i
 simulated once in memory and fitted under every configuration; each (flight,
 configuration) gives one row of the tidy table ``rows.csv``:
 
-* the flight: index, seed, keyframes, turbine, the pose / turbine / heat-map noise
-  scales, the blade-rotation offset;
+* the flight: index, seed, keyframes, turbine, the pose / turbine / heat-map fault /
+  heat-map blur scales, the blade-rotation offset, whether a second turbine is in view;
 * the outcome: ``status`` (``ok`` or ``error``) and ``reason``;
 * initial and final errors: mean position [m], orientation [deg], camera roll [deg],
   model points [m], each turbine parameter (m, deg);
@@ -60,7 +60,7 @@ ERROR_COLUMNS = ("position_m", "orientation_deg", "roll_deg", "model_points_m", 
 #: The table's columns, in order.
 COLUMNS: tuple[str, ...] = (
     "flight", "config", "status", "reason", "seed", "keyframes", "turbine", "pose_scale",
-    "theta_scale", "heatmap_scale", "blade_rotation_offset_deg", "second_turbine",
+    "theta_scale", "heatmap_scale", "blur_scale", "blade_rotation_offset_deg", "second_turbine",
     *(f"init_{c}" for c in ERROR_COLUMNS), *(f"final_{c}" for c in ERROR_COLUMNS),
     "initial_cost", "final_cost", "iterations", "rounds", "termination", "time_s",
 )
@@ -74,7 +74,9 @@ class SweepConfig:
     Attributes:
         name: a label (the study's name).
         flights: number of simulated flights.
-        keyframes: keyframes per flight.
+        keyframes: keyframes per flight (the lower end, with ``keyframes_max``).
+        keyframes_max: if set, each flight's keyframe count is drawn log-uniformly from
+            ``[keyframes, keyframes_max]`` (the flight-length study).
         seed: seed of the sweep (flight seeds and noise scales derive from it).
         width, height: heat-map size [px].
         turbine: simulator turbine preset, or ``random``.
@@ -85,7 +87,10 @@ class SweepConfig:
         heatmap_scale: range of the heat-map faults, in units of the default (pixel noise,
             missed parts, false responses, peak jitter); 0 = ideal heat-maps.
         blade_rotation_offset_deg: added to the initial blade rotation (the roll study).
-        second_turbine: a neighbouring turbine in view.
+        blur_scale: range of the heat-map blob and ridge width, in units of the default
+            (2 px at 320 px): a blurrier CNN.
+        second_turbine: fraction of flights with a neighbouring turbine in view (false
+            responses in the same channels); true / false = all / none.
         configs: name -> fit options (a mapping of :class:`FitConfig` fields, optionally
             with ``preset``: a name of :data:`turbinefit.solver.config.PRESETS` to start
             from).
@@ -94,6 +99,7 @@ class SweepConfig:
     name: str = "sweep"
     flights: int = 20
     keyframes: int = 100
+    keyframes_max: int | None = None
     seed: int = 0
     width: int = 320
     height: int = 240
@@ -101,8 +107,9 @@ class SweepConfig:
     pose_scale: tuple[float, float] = (0.0, 2.0)
     theta_scale: tuple[float, float] = (0.0, 2.0)
     heatmap_scale: tuple[float, float] = (1.0, 1.0)
+    blur_scale: tuple[float, float] = (1.0, 1.0)
     blade_rotation_offset_deg: float = 0.0
-    second_turbine: bool = False
+    second_turbine: float = 0.0
     configs: dict[str, dict[str, Any]] = field(
         default_factory=lambda: {"paper-best": {"preset": "paper-best"}})
 
@@ -116,7 +123,11 @@ class SweepConfig:
                 raise bad(name, "must be a whole number >= " + ("2" if name == "keyframes" else "1"))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise bad("seed", "must be a whole number >= 0")
-        for name in ("pose_scale", "theta_scale", "heatmap_scale"):
+        if self.keyframes_max is not None and (
+                isinstance(self.keyframes_max, bool) or not isinstance(self.keyframes_max, int)
+                or self.keyframes_max < self.keyframes):
+            raise bad("keyframes_max", "must be a whole number >= keyframes, or null")
+        for name in ("pose_scale", "theta_scale", "heatmap_scale", "blur_scale"):
             v = getattr(self, name)
             if (not isinstance(v, tuple) or len(v) != 2
                     or not all(isinstance(x, int | float) and not isinstance(x, bool)
@@ -125,8 +136,12 @@ class SweepConfig:
         if not (isinstance(self.blade_rotation_offset_deg, int | float)
                 and math.isfinite(self.blade_rotation_offset_deg)):
             raise bad("blade_rotation_offset_deg", "must be a finite number")
-        if not isinstance(self.second_turbine, bool):
-            raise bad("second_turbine", "must be true or false")
+        if isinstance(self.second_turbine, bool):
+            object.__setattr__(self, "second_turbine", 1.0 if self.second_turbine else 0.0)
+        if not (isinstance(self.second_turbine, int | float) and 0 <= self.second_turbine <= 1):
+            raise bad("second_turbine", "must be a fraction in [0, 1] (or true / false)")
+        if min(self.blur_scale) <= 0:
+            raise bad("blur_scale", "must be positive")
         if not isinstance(self.configs, dict) or not self.configs:
             raise bad("configs", "must be a non-empty mapping of name -> fit options")
         for name in self.configs:
@@ -136,8 +151,9 @@ class SweepConfig:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        for k in ("pose_scale", "theta_scale", "heatmap_scale"):
+        for k in ("pose_scale", "theta_scale", "heatmap_scale", "blur_scale"):
             d[k] = list(d[k])
+        d["second_turbine"] = float(d["second_turbine"])
         return d
 
     @staticmethod
@@ -148,7 +164,7 @@ class SweepConfig:
         if unknown:
             raise ValueError(f"unknown sweep option(s): {', '.join(unknown)}")
         d = dict(d)
-        for k in ("pose_scale", "theta_scale", "heatmap_scale"):
+        for k in ("pose_scale", "theta_scale", "heatmap_scale", "blur_scale"):
             if isinstance(d.get(k), list):
                 d[k] = tuple(d[k])
             elif isinstance(d.get(k), int | float) and not isinstance(d.get(k), bool):
@@ -184,6 +200,9 @@ class FlightSpec:
     pose_scale: float
     theta_scale: float
     heatmap_scale: float
+    keyframes: int = 100
+    blur_scale: float = 1.0
+    second_turbine: bool = False
 
 
 def flight_specs(cfg: SweepConfig) -> list[FlightSpec]:
@@ -195,7 +214,16 @@ def flight_specs(cfg: SweepConfig) -> list[FlightSpec]:
         seed = int(rng.integers(0, 2**31 - 1))
         scales = [float(rng.uniform(lo, hi)) for lo, hi in
                   (cfg.pose_scale, cfg.theta_scale, cfg.heatmap_scale)]
-        out.append(FlightSpec(i, seed, *scales))
+        # drawn after the above, so adding them left earlier sweeps' flights unchanged
+        n = cfg.keyframes
+        if cfg.keyframes_max is not None and cfg.keyframes_max > cfg.keyframes:
+            n = round(math.exp(rng.uniform(math.log(cfg.keyframes),
+                                           math.log(cfg.keyframes_max))))
+        blur = float(rng.uniform(*cfg.blur_scale))
+        neighbour = bool(rng.uniform() < cfg.second_turbine)
+        out.append(FlightSpec(i, seed, pose_scale=scales[0], theta_scale=scales[1],
+                              heatmap_scale=scales[2], keyframes=n, blur_scale=blur,
+                              second_turbine=neighbour))
     return out
 
 
@@ -208,12 +236,13 @@ def _sim_config(cfg: SweepConfig, spec: FlightSpec) -> SimConfig:
                                 spurious_rate=hn.spurious_rate * s,
                                 amplitude_jitter=min(hn.amplitude_jitter * s, 0.9))
     return SimConfig(
-        n_keyframes=cfg.keyframes, seed=spec.seed, width=cfg.width, height=cfg.height,
+        n_keyframes=spec.keyframes, seed=spec.seed, width=cfg.width, height=cfg.height,
         turbine=cfg.turbine, heatmap_noise=noise,
+        heatmap_sigma=base.heatmap_sigma * spec.blur_scale,
         drift_pos_m=base.drift_pos_m * spec.pose_scale,
         drift_rot_deg=base.drift_rot_deg * spec.pose_scale,
         turbine_sigma=tuple(x * spec.theta_scale for x in DEFAULT_TURBINE_SIGMA),
-        second_turbine=cfg.second_turbine)
+        second_turbine=spec.second_turbine)
 
 
 def roll_errors_deg(estimate: SE3, reference: SE3) -> np.ndarray:
@@ -239,11 +268,12 @@ def run_flight(cfg: SweepConfig, spec: FlightSpec, configs: list[str]) -> list[d
     """Simulate flight ``spec`` and fit it under each of ``configs``: one row each. Never
     raises for a failing fit or simulation: the row says why."""
     base: dict[str, Any] = {
-        "flight": spec.index, "seed": spec.seed, "keyframes": cfg.keyframes,
+        "flight": spec.index, "seed": spec.seed, "keyframes": spec.keyframes,
         "turbine": cfg.turbine, "pose_scale": spec.pose_scale,
         "theta_scale": spec.theta_scale, "heatmap_scale": spec.heatmap_scale,
+        "blur_scale": spec.blur_scale,
         "blade_rotation_offset_deg": cfg.blade_rotation_offset_deg,
-        "second_turbine": cfg.second_turbine}
+        "second_turbine": spec.second_turbine}
     try:
         flight = simulate_flight(_sim_config(cfg, spec))
         if cfg.blade_rotation_offset_deg:
