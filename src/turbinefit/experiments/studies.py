@@ -454,6 +454,15 @@ def write_index(root: str | os.PathLike[str]) -> Path:
         elif cfg.name == "roll" and s.get("roll_deg_mean_abs"):
             head = "mean roll error " + ", ".join(f"{k} {_num(v)} deg"
                                                   for k, v in s["roll_deg_mean_abs"].items())
+        elif cfg.name in FACTORS and s.get("factors"):
+            name = next(iter(cfg.configs))
+            parts = []
+            for key, label, edges in FACTORS[cfg.name]:
+                bins = s["factors"][key][name]
+                parts.append(f"{label} " + ", ".join(
+                    f"{t} {_num(b['median'])}" for t, b in zip(_bin_labels(key, edges), bins,
+                                                                strict=True)))
+            head = f"median final position [m] ({name}): " + "; ".join(parts)
         elif cfg.name == "basin" and s.get("success_rate") is not None:
             head = f"success rate {100 * s['success_rate']:.0f} %"
         lines.append(f"| {cfg.name} | {cfg.flights} x {len(cfg.configs)} | {head} | "
