@@ -62,39 +62,36 @@ RUNS_FILE = "runs.json"
 REPORT_FILE = "report.md"
 
 
+_JOINT = {"joint": {"preset": "paper-best"}}
+_JOINT_POSE = {**_JOINT, "pose-only": {"preset": "pose-only"}}
+#: Each study: its default number of flights and the sweep fields it sets.
+_STUDY_SWEEPS: dict[str, tuple[int, dict[str, Any]]] = {
+    "unary": (200, {"configs": UNARY}),
+    "joint": (200, {"configs": _JOINT_POSE}),
+    "turbine": (200, {"pose_scale": (0.5, 2.0), "theta_scale": (0.5, 2.0), "configs": _JOINT}),
+    "roll": (20, {"pose_scale": (0.0, 0.0), "theta_scale": (0.0, 0.0),
+                  "blade_rotation_offset_deg": 10.0, "configs": _JOINT_POSE}),
+    "basin": (120, {"pose_scale": (0.0, 6.0), "theta_scale": (0.0, 6.0), "configs": _JOINT}),
+    "quality": (120, {"pose_scale": (0.5, 1.5), "theta_scale": (0.5, 1.5),
+                      "heatmap_scale": (0.0, 4.0), "blur_scale": (0.5, 3.0),
+                      "second_turbine": 0.5,
+                      "configs": {k: UNARY[k] for k in ("points corr, lines interp",
+                                                         "points interp, lines interp")}}),
+    "length": (60, {"keyframes": 25, "keyframes_max": 400, "configs": _JOINT}),
+}
+
+
 def study_config(study: str, flights: int | None = None, keyframes: int = 100,
                  seed: int = 0) -> SweepConfig:
-    """The sweep of ``study`` (see the module docstring)."""
-    joint = {"joint": {"preset": "paper-best"}, "pose-only": {"preset": "pose-only"}}
-    if study == "unary":
-        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
-                           configs={k: dict(v) for k, v in UNARY.items()})
-    if study == "joint":
-        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
-                           configs=joint)
-    if study == "turbine":
-        return SweepConfig(name=study, flights=flights or 200, keyframes=keyframes, seed=seed,
-                           pose_scale=(0.5, 2.0), theta_scale=(0.5, 2.0),
-                           configs={"joint": {"preset": "paper-best"}})
-    if study == "roll":
-        return SweepConfig(name=study, flights=flights or 20, keyframes=keyframes, seed=seed,
-                           pose_scale=(0.0, 0.0), theta_scale=(0.0, 0.0),
-                           blade_rotation_offset_deg=10.0, configs=joint)
-    if study == "basin":
-        return SweepConfig(name=study, flights=flights or 120, keyframes=keyframes, seed=seed,
-                           pose_scale=(0.0, 6.0), theta_scale=(0.0, 6.0),
-                           configs={"joint": {"preset": "paper-best"}})
-    if study == "quality":
-        return SweepConfig(name=study, flights=flights or 120, keyframes=keyframes, seed=seed,
-                           pose_scale=(0.5, 1.5), theta_scale=(0.5, 1.5),
-                           heatmap_scale=(0.0, 4.0), blur_scale=(0.5, 3.0), second_turbine=0.5,
-                           configs={k: dict(UNARY[k]) for k in
-                                    ("points corr, lines interp", "points interp, lines interp")})
-    if study == "length":
-        return SweepConfig(name=study, flights=flights or 60, keyframes=25, keyframes_max=400,
-                           seed=seed, configs={"joint": {"preset": "paper-best"}})
-    raise InputError(f"unknown study {study!r} (choose from {', '.join(STUDIES)}, all)",
-                     field="study")
+    """The sweep of ``study`` (see the module docstring); the length study draws its own
+    keyframe counts, so ``keyframes`` does not apply to it."""
+    if study not in _STUDY_SWEEPS:
+        raise InputError(f"unknown study {study!r} (choose from {', '.join(STUDIES)}, all)",
+                         field="study")
+    n, fields = _STUDY_SWEEPS[study]
+    fields = {**fields, "configs": {k: dict(v) for k, v in fields["configs"].items()}}
+    return SweepConfig(**{"name": study, "flights": flights or n, "keyframes": keyframes,
+                          "seed": seed, **fields})
 
 
 def run_study(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str = "local",
