@@ -123,7 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
     _add_flight_job_options(f, dflt, "paper-best (default), all-interp, all-corr, paper-worst, "
-                            "pose-only, turbine-only")
+                            "corr-normal, pose-only, turbine-only")
     f.add_argument("--no-warmup", dest="warmup", action="store_const", const=False,
                    default=None, help="skip the correspondence warm-up stages (align, match) "
                    "and start with the configured cost")
@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="no start-up prior on the turbine (default: a prior around the initial "
                    "turbine, removed once the images outweigh it)")
     _add_flight_job_options(k, dflt, "paper-best (default), all-interp, all-corr, "
-                            "paper-worst, pose-only", batch=False)
+                            "paper-worst, corr-normal, pose-only", batch=False)
     _add_photo_options(k, "detect each keyframe's heat-maps from images/ as it arrives")
     k.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but track "

@@ -462,6 +462,10 @@ def write_index(root: str | os.PathLike[str]) -> Path:
             head = f"median final position [m] ({name}): " + "; ".join(parts)
         elif cfg.name == "basin" and s.get("success_rate") is not None:
             head = f"success rate {100 * s['success_rate']:.0f} %"
+        elif s["ranking_by_median_final_position"]:  # a custom sweep
+            head = "by median final position: " + " > ".join(
+                f"{n} {s['configs'][n]['position_m']['final_median']:.3f} m"
+                for n in s["ranking_by_median_final_position"])
         lines.append(f"| {cfg.name} | {cfg.flights} x {len(cfg.configs)} | {head} | "
                      f"[{sub.name}/{REPORT_FILE}]({sub.name}/{REPORT_FILE}) |")
     lines.append("")
