@@ -184,6 +184,13 @@ def test_a_folder_of_another_sweep_is_refused(tmp_path: Path) -> None:
 
     with pytest.raises(InputError, match="different sweep"):
         run_sweep(tiny("turbine", flights=1, seed=5), out, workers=1)
+    # a folder of the user's own files is never written into
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.md").write_text("my notes\n")
+    with pytest.raises(InputError, match="holds no sweep"):
+        run_sweep(tiny("turbine", flights=1), mine, workers=1)
+    assert [p.name for p in mine.iterdir()] == ["report.md"]
 
 
 def test_cli_experiment_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -445,7 +445,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     """Run (or resume) the sweep into ``out_dir/rows.csv``.
 
     Rows already in the table are kept and not rerun (the table must be from the same
-    sweep: ``out_dir/sweep.yaml`` is compared with ``cfg``). ``progress(done, total)`` is
+    sweep: ``out_dir/sweep.yaml`` is compared with ``cfg``). A non-empty folder without a
+    ``sweep.yaml`` is refused, so that nothing of the user's is overwritten. ``progress(done, total)`` is
     called after each flight (flights, not rows).
     """
     import yaml
@@ -453,6 +454,11 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     from turbinefit.io.atomic import write_text_atomic
 
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError("not a directory", out)
+    if out.is_dir() and any(out.iterdir()) and not (out / "sweep.yaml").exists():
+        raise InputError("folder is not empty and holds no sweep (sweep.yaml): choose a new "
+                         "or empty folder", out)
     out.mkdir(parents=True, exist_ok=True)
     sweep_file = out / "sweep.yaml"
     text = yaml.safe_dump(cfg.to_dict(), sort_keys=False)
