@@ -370,6 +370,22 @@ def simulate_folder(
 FIT_DETECT_WIDTH = 320
 
 
+def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
+    """The camera of heat-maps detected from photos taken with ``camera``: the same, or
+    resized to ``width`` px wide if it is wider (detection at a working resolution)."""
+    if camera.width <= width:
+        return camera
+    return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+
+
+def _photo_size_error(img: np.ndarray, camera: PinholeCamera) -> str | None:
+    """Why a photo does not fit ``camera.yaml``, or None."""
+    if img.shape[:2] == (camera.height, camera.width):
+        return None
+    return (f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
+            f"{camera.width}x{camera.height}")
+
+
 def image_heatmap_source(flight_dir: str | os.PathLike[str],
                          model: str | os.PathLike[str] | None = None,
                          width: int = FIT_DETECT_WIDTH, progress: bool = False,
@@ -391,16 +407,14 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
         detector = HeatmapDetector(model, threads)
-        cam = camera
-        if camera.width > width:
-            cam = camera.resized(width, max(1, round(camera.height * width / camera.width)))
+        cam = detection_camera(camera, width)
         maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
         for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
                                    disable=None if progress else True)):
             img = read_image(p)
-            if img.shape[:2] != (camera.height, camera.width):
-                raise InputError(f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
-                                 f"{camera.width}x{camera.height}", path=p)
+            why = _photo_size_error(img, camera)
+            if why is not None:
+                raise InputError(why, path=p)
             maps[k] = detector.detect(img, size=(cam.width, cam.height))
         return cam, HeatmapStack(maps)
 
@@ -672,10 +686,7 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
         paths = keyframe_images(flight_dir, timestamps)
         for p in paths:  # headers only, before any work
             check_image(p)
-        cam = camera
-        if camera.width > FIT_DETECT_WIDTH:
-            cam = camera.resized(FIT_DETECT_WIDTH, max(1, round(
-                camera.height * FIT_DETECT_WIDTH / camera.width)))
+        cam = detection_camera(camera)
         found.update(paths=paths, camera=camera, cam=cam)
         blank = np.zeros((7, cam.height, cam.width), dtype=np.float32)
         return cam, HeatmapStack([blank] * len(paths))
@@ -685,9 +696,9 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:
-        if img.shape[:2] != (camera.height, camera.width):
-            raise KeyframeError(-1, f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml "
-                                f"is {camera.width}x{camera.height}")
+        why = _photo_size_error(img, camera)
+        if why is not None:
+            raise KeyframeError(-1, why)
         return detector.detect(img, size=(cam.width, cam.height))
 
     return flight, paths, detect

@@ -238,7 +238,6 @@ class Tracker:
         self.camera = camera
         self.config = config or TrackerConfig()
         self.detector = detector
-        self.initial_turbine = initial_turbine
         cfg = self.config
         self._refine_cfg = cfg.fit
         self._marg_cfg = marginal_config(cfg.fit) if cfg.marginal_terms == "corr" else cfg.fit
