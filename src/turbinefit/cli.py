@@ -583,20 +583,14 @@ def _cmd_experiment(args: argparse.Namespace) -> int:
     from turbinefit.errors import InputError
     from turbinefit.experiments import STUDIES, study_config
     from turbinefit.experiments.studies import run_study
-    from turbinefit.experiments.sweep import SweepConfig
+    from turbinefit.experiments.sweep import read_sweep_config
 
     studies = list(STUDIES) if args.study == "all" else [args.study]
     root = args.out_dir or Path("experiments") / args.study
     if args.config is not None:
         if args.study == "all":
             raise InputError("--config runs one sweep: give a study, not all", field="--config")
-        from turbinefit.io.camera_yaml import load_yaml_mapping
-
-        data = load_yaml_mapping(args.config)
-        try:
-            configs = {args.study: SweepConfig.from_dict(data)}
-        except (TypeError, ValueError) as exc:
-            raise InputError(str(exc), args.config) from None
+        configs = {args.study: read_sweep_config(args.config)}
     else:
         configs = {st: study_config(st, args.flights, args.keyframes, args.seed)
                    for st in studies}

@@ -43,6 +43,7 @@ from turbinefit.experiments.sweep import (
     SweepConfig,
     SweepReport,
     read_rows,
+    read_sweep_config,
     run_sweep,
 )
 
@@ -101,8 +102,7 @@ def run_study(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     ``runs.json``, and write the figures and ``report.md``."""
     out = Path(out_dir)
     rep = run_sweep(cfg, out, backend=backend, workers=workers, progress=progress)
-    runs_path = out / RUNS_FILE
-    runs = json.loads(runs_path.read_text()) if runs_path.exists() else []
+    runs = _read_runs(out)
     if rep.new_rows:  # a resumed sweep with nothing left to do is not a run
         runs.append({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "backend": backend,
                      "workers": workers or os.cpu_count(), "new_rows": rep.new_rows,
@@ -110,9 +110,25 @@ def run_study(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
                      "rows_per_s": round(rep.new_rows / rep.seconds, 3) if rep.seconds > 0 else None})
     from turbinefit.io.atomic import write_text_atomic
 
-    write_text_atomic(runs_path, json.dumps(runs, indent=2) + "\n")
+    write_text_atomic(out / RUNS_FILE, json.dumps(runs, indent=2) + "\n")
     write_report(out)
     return rep
+
+
+def _read_runs(folder: Path) -> list[dict[str, Any]]:
+    """The timings of earlier runs of the study in ``folder`` (``runs.json``), or []."""
+    path = folder / RUNS_FILE
+    if not path.exists():
+        return []
+    from turbinefit.io.atomic import read_text
+
+    try:
+        runs = json.loads(read_text(path))
+    except json.JSONDecodeError as exc:
+        raise InputError(f"malformed JSON: {exc.msg}", path, exc.lineno) from None
+    if not isinstance(runs, list):
+        raise InputError("expected a list of runs", path)
+    return runs
 
 
 # ---------------------------------------------------------------------------------------
@@ -257,17 +273,11 @@ def basin_table(rows: list[dict[str, Any]], edges: tuple[float, ...] = (0, 1, 2,
 # ---------------------------------------------------------------------------------------
 def load_study(folder: str | os.PathLike[str]) -> tuple[SweepConfig, list[dict[str, Any]]]:
     """The sweep configuration and rows stored in ``folder`` (InputError if missing)."""
-    import yaml
-
     root = Path(folder)
     sweep = root / "sweep.yaml"
     if not sweep.is_file():
         raise InputError("not a sweep folder (no sweep.yaml)", root)
-    try:
-        cfg = SweepConfig.from_dict(yaml.safe_load(sweep.read_text()) or {})
-    except (ValueError, TypeError, yaml.YAMLError) as exc:
-        raise InputError(f"bad sweep configuration: {exc}", sweep) from None
-    return cfg, read_rows(root / ROWS_FILE)
+    return read_sweep_config(sweep), read_rows(root / ROWS_FILE)
 
 
 def _pct(v: float | None) -> str:
@@ -333,8 +343,7 @@ def write_report(folder: str | os.PathLike[str]) -> Path:
                                        for row in b["rate"]], dtype=np.float64),
                              np.array(b["count"]))
             figures.append(("basin.png", "Success rate against the initial error sizes"))
-    runs_path = root / RUNS_FILE
-    runs = json.loads(runs_path.read_text()) if runs_path.exists() else []
+    runs = _read_runs(root)
     lines = [f"# turbinefit experiment: {cfg.name}", ""]
     lines += [f"{cfg.flights} simulated flights of {cfg.keyframes} keyframes ({cfg.width}x"
               f"{cfg.height} heat-maps, turbine {cfg.turbine}, sweep seed {cfg.seed}), "

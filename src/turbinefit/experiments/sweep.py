@@ -45,6 +45,7 @@ import numpy as np
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import accuracy
 from turbinefit.geometry.se3 import SE3, quat_conjugate, quat_log, quat_multiply
+from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
 from turbinefit.sim.scenario import SimConfig, simulate_flight
 from turbinefit.solver.config import PRESETS, FitConfig
@@ -170,6 +171,18 @@ class SweepConfig:
             elif isinstance(d.get(k), int | float) and not isinstance(d.get(k), bool):
                 d[k] = (d[k], d[k])
         return SweepConfig(**d)
+
+
+def read_sweep_config(path: str | os.PathLike[str]) -> SweepConfig:
+    """The sweep of a YAML file (e.g. a run's ``sweep.yaml``); every problem is an
+    InputError naming the file (and line, for malformed YAML)."""
+    from turbinefit.io.camera_yaml import load_yaml_mapping
+
+    data = load_yaml_mapping(path)
+    try:
+        return SweepConfig.from_dict(data)
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc), path) from None
 
 
 def fit_config(configs: dict[str, dict[str, Any]], name: str) -> FitConfig:
@@ -341,13 +354,7 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """The rows of a sweep table, typed (numbers as float/int, empty as None). A last line
     cut short by an interruption is skipped; any other malformed line is an InputError."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("sweep table not found", p) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read the sweep table: {exc}", p) from None
-    lines = text.splitlines(keepends=True)
+    lines = read_text(p).splitlines(keepends=True)
     if not lines:
         raise InputError("empty sweep table (no header)", p)
     header = next(csv.reader([lines[0]]))
@@ -451,8 +458,6 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     """
     import yaml
 
-    from turbinefit.io.atomic import write_text_atomic
-
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("not a directory", out)
@@ -463,11 +468,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     sweep_file = out / "sweep.yaml"
     text = yaml.safe_dump(cfg.to_dict(), sort_keys=False)
     if sweep_file.exists():
-        try:
-            old = SweepConfig.from_dict(yaml.safe_load(sweep_file.read_text()))
-        except (ValueError, TypeError, yaml.YAMLError) as exc:
-            raise InputError(f"not a sweep configuration: {exc}", sweep_file) from None
-        if old != cfg:
+        if read_sweep_config(sweep_file) != cfg:
             raise InputError("holds a different sweep; use another output folder",
                              sweep_file)
     else:
