@@ -5,7 +5,7 @@
   with onnxruntime; metrics of :mod:`turbinefit.eval.detection` at the model's calibrated
   threshold (hub / tower-top / base median error, blade-tip recall and precision within
   5 px, IoU of the line channels, false peaks of point channels whose point is out of
-  frame).
+  frame, and the signed biases of blade tips and tower top that a fit adds up).
 * **Inference speed** at 320 x 240: :meth:`HeatmapDetector.detect` (resize to the input
   size, the net, resize of the 7 maps back to 320 x 240) on rendered photos, all cores.
 * **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),
@@ -51,7 +51,9 @@ DETECTED_OPTIONS = ["--points", "interp", "--robust", "cauchy"]
 
 
 def heldout_metrics(det: HeatmapDetector, n: int) -> dict[str, float]:
-    data = build_dataset(DATA / f"heldout-v{DATA_VERSION}-n{n}-s{HELDOUT_SEED}", DatasetSpec(n, HELDOUT_SEED))
+    scale = det.info.output_scale
+    data = build_dataset(DATA / f"heldout-v{DATA_VERSION}-n{n}-s{HELDOUT_SEED}-x{scale}",
+                         DatasetSpec(n, HELDOUT_SEED, image_scale=scale))
     stats = DetectionStats(threshold=det.info.threshold, tip_threshold=det.info.tip_threshold)
     for i in range(n):
         pred = det.detect_small(np.asarray(data.images[i]))
@@ -127,7 +129,7 @@ def main() -> None:
           f"input {det.info.input_width} px)")
 
     m = heldout_metrics(det, args.heldout)
-    print(f"held-out renders ({args.heldout} at 160x120):")
+    print(f"held-out renders ({args.heldout}, heat-maps at 160x120):")
     for k in ("hub", "tower_top", "base"):
         print(f"  {k:10s} median {m[k + '_median_px']:.2f} px, p90 {m[k + '_p90_px']:.2f} px, "
               f"detected {m[k + '_detected']:.1%}, false peak when out of frame "
@@ -135,6 +137,8 @@ def main() -> None:
     print(f"  tips       recall {m['tips_recall']:.1%}, precision {m['tips_precision']:.1%} (5 px)")
     print(f"  IoU        tower {m['iou_tower']:.2f}, nacelle {m['iou_nacelle']:.2f}, blade "
           f"{m['iou_blade']:.2f}")
+    print(f"  biases     tips along the blade {m['tip_bias_px']:+.2f} px, tower top towards the "
+          f"base {m['tower_top_bias_px']:+.2f} px (at 160 px)")
 
     flights = [simulate(s, args.keyframes) for s in args.seeds]
     sp = speed(det, flights[0])

@@ -22,12 +22,27 @@ def test_samples_are_deterministic_and_independent_of_size() -> None:
     assert not np.array_equal(a.image, c.image)
 
 
+def test_image_scales_show_the_same_scene() -> None:
+    """A photo of image scale 2 (320 x 240) resized to 160 x 120 is the scale-1 photo,
+    with the same targets and points (both are rendered at 320 x 240)."""
+    from turbinefit.io.images import resize_image
+
+    one = render_sample(DatasetSpec(3, seed=6, image_scale=1), 1)
+    two = render_sample(DatasetSpec(3, seed=6, image_scale=2), 1)
+    assert one.image.shape == (120, 160, 3) and two.image.shape == (240, 320, 3)
+    np.testing.assert_array_equal(resize_image(two.image, 160, 120), one.image)
+    np.testing.assert_array_equal(one.target, two.target)
+    np.testing.assert_array_equal(one.points, two.points)
+    with pytest.raises(ValueError, match="image_scale"):
+        DatasetSpec(3, image_scale=3)
+
+
 def test_targets_peak_on_the_projected_points() -> None:
     spec = DatasetSpec(1, seed=11)
     checked = 0
     for i in range(10):
         s = render_sample(spec, i)
-        assert s.image.shape == (120, 160, 3) and s.image.dtype == np.uint8
+        assert s.image.shape == (240, 320, 3) and s.image.dtype == np.uint8
         assert s.target.shape == (7, 120, 160) and np.isfinite(s.target).all()
         for c in (0, 1, 2):
             if s.visible[c] and 2 < s.points[c, 0] < 157 and 2 < s.points[c, 1] < 117:
@@ -77,3 +92,6 @@ def test_build_resumes_and_refuses_another_spec(tmp_path: Path) -> None:
     np.testing.assert_array_equal(np.array(d2.images), images)
     with pytest.raises(InputError, match="another spec"):
         build_dataset(tmp_path / "d", DatasetSpec(5, seed=1), workers=1, progress=False)
+    with pytest.raises(InputError, match="another spec"):
+        build_dataset(tmp_path / "d", DatasetSpec(4, seed=1, image_scale=1), workers=1,
+                      progress=False)

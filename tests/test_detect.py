@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from turbinefit.cli import main
-from turbinefit.detect import HeatmapDetector, default_model_path, model_input_size
+from turbinefit.detect import HeatmapDetector, ModelInfo, default_model_path, model_input_size
 from turbinefit.eval.detection import DetectionStats, peak
 from turbinefit.io.images import read_image, write_png
 from turbinefit.sim.dataset import DatasetSpec, render_sample
@@ -47,11 +47,23 @@ def test_shipped_model_finds_the_hub(detector: HeatmapDetector, samples: list) -
     errs = []
     for s in samples:
         maps = detector.detect(s.image)
-        assert maps.shape == (7, 120, 160) and maps.dtype == np.float32
+        assert maps.shape == (7, 240, 320) and maps.dtype == np.float32
         assert np.isfinite(maps).all() and maps.min() >= 0 and maps.max() <= 1
         u, v, _ = peak(maps[2])
-        errs.append(np.hypot(u - s.points[2, 0], v - s.points[2, 1]))
-    assert np.median(errs) < 3.0, errs
+        hub = (s.points[2] + 0.5) * 2 - 0.5  # points are in 160 x 120 target pixels
+        errs.append(np.hypot(u - hub[0], v - hub[1]))
+    assert np.median(errs) < 3.0, errs  # [px at 320 x 240]
+
+
+
+def test_model_input_size_keeps_the_aspect_and_the_output_scale() -> None:
+    one = ModelInfo(input_width=160)
+    two = ModelInfo(input_width=320, input_height=240, stride=32, output_scale=2)
+    assert model_input_size(4000, 3000, one) == (160, 120)
+    assert model_input_size(3000, 2000, one) == (160, 107)
+    assert model_input_size(4000, 3000, two) == (320, 240)
+    assert model_input_size(3000, 2000, two) == (320, 214)  # height a multiple of 2
+    assert model_input_size(4000, 10, two) == (320, 2)
 
 
 def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: list) -> None:
@@ -60,12 +72,12 @@ def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: li
     big = np.repeat(np.repeat(s.image, 2, axis=0), 2, axis=1)
     small = detector.detect(s.image)
     maps = detector.detect(big)
-    assert maps.shape == (7, 240, 320)
+    assert maps.shape == (7, 480, 640)
     u1, v1, _ = peak(small[2])
     u2, v2, _ = peak(maps[2])
     assert abs((u2 + 0.5) / 2 - 0.5 - u1) < 1.0 and abs((v2 + 0.5) / 2 - 0.5 - v1) < 1.0
-    assert model_input_size(4000, 3000, detector.info) == (160, 120)
     assert detector.detect(np.zeros((37, 301, 3), np.uint8)).shape == (7, 37, 301)
+    assert detector.detect_small(s.image).shape == (7, 120, 160)
 
 
 def test_detection_metrics_of_perfect_maps(samples: list) -> None:
@@ -91,8 +103,8 @@ def test_detect_cli(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted([f"img{k}.{e}" for k in range(4) for e in ("npy", "png")])
     maps = np.load(out / "img0.npy")
-    assert maps.shape == (7, 120, 160) and maps.dtype == np.float32
-    assert read_image(out / "img0.png").shape == (120, 160, 3)
+    assert maps.shape == (7, 240, 320) and maps.dtype == np.float32
+    assert read_image(out / "img0.png").shape == (240, 320, 3)
     # again without --overwrite: refused; with it: replaced
     assert main(["detect", str(photos), "--out", str(out), "--quiet"]) == 2
     assert main(["detect", str(photos / "img0.png"), "--out", str(out), "--quiet",

@@ -40,3 +40,29 @@ def test_counts() -> None:
     assert m["tips_recall"] == pytest.approx(2 / 3)
     assert m["tips_precision"] == pytest.approx(2 / 3)
     assert m["iou_tower"] == pytest.approx(1.0)
+
+
+def test_biases_are_signed_along_the_blade_and_the_tower() -> None:
+    """Tips drawn 1 px inboard and the tower top 0.5 px towards the base give -1 and +0.5."""
+    uv = np.array([[40, 55], [40, 15], [44, 15], [44, 3], [34, 21], [54, 21]], float)
+    vis = np.ones(6, bool)
+    target = _maps(uv, vis)
+    moved = uv.copy()
+    for i in (3, 4, 5):
+        d = uv[2] - uv[i]
+        moved[i] += d / np.hypot(*d)
+    moved[1, 1] += 0.5
+    pred = _maps(moved, vis)
+    st = DetectionStats(threshold=0.5)
+    st.add(pred, target, uv, vis)
+    m = st.summary()
+    assert m["tip_bias_px"] == pytest.approx(-1.0, abs=0.05)
+    assert m["tower_top_bias_px"] == pytest.approx(0.5, abs=0.05)
+    assert m["tips_recall"] == 1.0
+
+
+def test_biases_are_nan_without_matches() -> None:
+    st = DetectionStats()
+    st.add(np.zeros((7, 60, 80)), np.zeros((7, 60, 80)), np.zeros((6, 2)), np.zeros(6, bool))
+    m = st.summary()
+    assert np.isnan(m["tip_bias_px"]) and np.isnan(m["tower_top_bias_px"])

@@ -18,10 +18,10 @@ pytest.importorskip("onnx")
 from turbinefit.cli import main  # noqa: E402
 from turbinefit.detect import HeatmapDetector, ModelInfo  # noqa: E402
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints  # noqa: E402
-from turbinefit.io.images import read_image, write_png  # noqa: E402
+from turbinefit.io.images import read_image, resize_image, write_png  # noqa: E402
 from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # noqa: E402
 from turbinefit.train.labels import labelled_sample  # noqa: E402
-from turbinefit.train.net import HeatmapNet, num_parameters  # noqa: E402
+from turbinefit.train.net import HeatmapNet, lift_to_input_scale_2, num_parameters  # noqa: E402
 from turbinefit.train.trainer import (  # noqa: E402
     _jitter,
     export_onnx,
@@ -32,12 +32,59 @@ from turbinefit.train.trainer import (  # noqa: E402
 torch.set_num_threads(1)
 
 
-def test_net_shape_and_size() -> None:
-    net = HeatmapNet()
+def _photo_px(uv: np.ndarray, scale: int) -> np.ndarray:
+    """Heat-map pixel coordinates -> photo pixel coordinates (pixel centres aligned)."""
+    return (np.asarray(uv, dtype=np.float64) + 0.5) * scale - 0.5
+
+
+@pytest.mark.parametrize("scale", [1, 2])
+def test_net_shape_and_size(scale: int) -> None:
+    net = HeatmapNet(input_scale=scale)
     assert 4e5 < num_parameters(net) < 8e5
-    out = forward(net, torch.rand(2, 3, 120, 160))  # 120 is padded to 128 and cropped back
+    # 120 s is padded to a multiple of 16 s and the output cropped back to 120 x 160
+    out = forward(net, torch.rand(2, 3, 120 * scale, 160 * scale))
     assert out.shape == (2, 7, 120, 160)
     assert torch.isfinite(out).all()
+
+
+def test_net_refuses_other_scales() -> None:
+    with pytest.raises(ValueError, match="input_scale"):
+        HeatmapNet(input_scale=3)
+
+
+def test_lifted_net_sees_320_px_photos_as_the_old_one_saw_160_px() -> None:
+    """A 160-px net lifted to 320-px input gives nearly its old heat-maps on the same
+    photo: the old net on the photo resized to 160 px, the lifted one on the photo."""
+    torch.manual_seed(3)
+    photos = np.stack([render_sample(DatasetSpec(1, seed=2), i).image for i in range(3)])
+    old = HeatmapNet(input_scale=1)
+    small = np.stack([resize_image(p, 160, 120) for p in photos])
+    x1 = torch.from_numpy(small.transpose(0, 3, 1, 2).copy()).float() / 255
+    x2 = torch.from_numpy(photos.transpose(0, 3, 1, 2).copy()).float() / 255
+    old.train()
+    for _ in range(3):  # batch-norm statistics of real photos
+        old(torch.nn.functional.pad(x1, (0, 0, 0, 8), mode="replicate"))
+    old.eval()
+    new = HeatmapNet(input_scale=2)
+    new.load_state_dict(lift_to_input_scale_2(old.state_dict()))
+    new.eval()
+    with torch.no_grad():
+        a, b = forward(old, x1), forward(new, x2)
+    assert a.shape == b.shape == (3, 7, 120, 160)
+
+    def rel(p: torch.Tensor, q: torch.Tensor) -> float:  # error relative to p's spread
+        return float((p - q).std() / p.std())
+
+    assert rel(a, b) < 0.05  # measured 0.013
+    # and a net that was not lifted (fresh full-resolution layers) does not
+    fresh = HeatmapNet(input_scale=2)
+    state = fresh.state_dict()
+    state.update({k: v for k, v in old.state_dict().items() if k != "stem.0.weight"})
+    fresh.load_state_dict(state)
+    fresh.eval()
+    with torch.no_grad():
+        c = forward(fresh, x2)
+    assert rel(a, c) > 0.15  # measured 0.28
 
 
 def test_loss_optimum_is_the_target() -> None:
@@ -52,8 +99,9 @@ def test_a_few_steps_reduce_the_loss(tmp_path: Path) -> None:
     data = build_dataset(tmp_path / "d", DatasetSpec(8, seed=5), workers=1, progress=False)
     x = torch.from_numpy(np.array(data.images).transpose(0, 3, 1, 2).copy()).float() / 255
     y = torch.from_numpy(np.array(data.targets)).float() / 255
+    assert x.shape[-2:] == (240, 320) and y.shape[-2:] == (120, 160)
     torch.manual_seed(0)
-    net = HeatmapNet()
+    net = HeatmapNet(input_scale=data.spec.image_scale)
     opt = torch.optim.AdamW(net.parameters(), lr=2e-3)
     losses = []
     for _ in range(25):
@@ -65,25 +113,30 @@ def test_a_few_steps_reduce_the_loss(tmp_path: Path) -> None:
     assert losses[-1] < 0.5 * losses[0]
 
 
-def test_onnx_output_equals_pytorch(tmp_path: Path) -> None:
+@pytest.mark.parametrize("scale", [1, 2])
+def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int) -> None:
     torch.manual_seed(1)
-    net = HeatmapNet()
+    net = HeatmapNet(input_scale=scale)
     net.train()
     for _ in range(3):  # non-trivial batch-norm statistics
-        net(torch.rand(4, 3, 128, 160))
+        net(torch.rand(4, 3, 128 * scale, 160 * scale))
     net.eval()
-    path = export_onnx(net, tmp_path / "m.onnx", ModelInfo(threshold=0.42))
+    info = ModelInfo(threshold=0.42, input_width=160 * scale, input_height=120 * scale,
+                     stride=16 * scale, output_scale=scale)
+    path = export_onnx(net, tmp_path / "m.onnx", info)
     det = HeatmapDetector(path, threads=1)
-    assert det.info.threshold == pytest.approx(0.42)
+    assert det.info == info
     rng = np.random.default_rng(0)
     for h, w in ((120, 160), (96, 160), (160, 160)):  # height follows the photo's aspect
-        img = rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
+        img = rng.integers(0, 256, size=(h * scale, w * scale, 3), dtype=np.uint8)
         got = det.detect_small(img)
         x = torch.from_numpy(img.transpose(2, 0, 1).copy()).float()[None] / 255
         with torch.no_grad():
             ref = torch.sigmoid(forward(net, x))[0].numpy()
-        assert got.shape == ref.shape
+        assert got.shape == ref.shape == (7, h, w)
         np.testing.assert_allclose(got, ref, atol=2e-5)
+        # at the photo's own size: the maps resized back
+        assert det.detect(img).shape == (7, h * scale, w * scale)
 
 
 def test_jitter_keeps_range() -> None:
@@ -95,6 +148,7 @@ def test_jitter_keeps_range() -> None:
 def test_coco_labels_give_the_rendered_targets(tmp_path: Path) -> None:
     """A rendered sample exported as a COCO file and imported again gives its own targets."""
     spec = DatasetSpec(1, seed=0)
+    s_ = spec.image_scale
     images = []
     for i in range(12):
         s = render_sample(spec, i)
@@ -106,14 +160,14 @@ def test_coco_labels_give_the_rendered_targets(tmp_path: Path) -> None:
     labelled = []
     for i, s in images:
         write_png(tmp_path / f"{i}.png", s.image)
-        labelled.append(LabelledImage(tmp_path / f"{i}.png", spec.width, spec.height, (
-            TurbineKeypoints(s.points, np.where(s.visible, 2, 0).astype(np.int8)),)))
+        labelled.append(LabelledImage(tmp_path / f"{i}.png", spec.width * s_, spec.height * s_, (
+            TurbineKeypoints(_photo_px(s.points, s_), np.where(s.visible, 2, 0).astype(np.int8)),)))
     write_coco_keypoints(labelled, tmp_path / "labels.json", tmp_path)
     from turbinefit.io.coco import read_coco_keypoints
 
     back = read_coco_keypoints(tmp_path / "labels.json", tmp_path)
     for (_, s), item in zip(images, back, strict=True):
-        img, tgt = labelled_sample(item, spec.width, spec.height, spec.sigma_px)
+        img, tgt = labelled_sample(item, spec.width, spec.height, spec.sigma_px, s_)
         np.testing.assert_array_equal(img, s.image)
         vis = s.visible
         # points: identical blobs for the labelled (visible) points
@@ -146,8 +200,8 @@ def test_train_cli_smoke_resume_and_fine_tune(tmp_path: Path, capsys: pytest.Cap
     # fine-tuning on COCO-labelled photos from these weights
     s = render_sample(DatasetSpec(1, seed=0), 0)
     write_png(tmp_path / "p.png", s.image)
-    write_coco_keypoints([LabelledImage(tmp_path / "p.png", 160, 120, (
-        TurbineKeypoints(s.points, np.where(s.visible, 2, 0).astype(np.int8)),))],
+    write_coco_keypoints([LabelledImage(tmp_path / "p.png", 320, 240, (
+        TurbineKeypoints(_photo_px(s.points, 2), np.where(s.visible, 2, 0).astype(np.int8)),))],
         tmp_path / "l.json", tmp_path)
     ft = tmp_path / "ft"
     assert main(["train", "--out", str(ft), "--images", "16", "--val-images", "0", "--epochs",

@@ -276,6 +276,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder the COCO file_name entries are relative to")
     t.add_argument("--init", type=Path, default=None,
                    help="weights.npz to start from (default with --labels: the shipped model)")
+    t.add_argument("--input-scale", type=int, choices=(1, 2), default=2,
+                   help="the net's input photos are this many times its 160x120 heat-maps "
+                   "(2: 320x240 photos, as the shipped model; with --init the weights decide)")
+    t.add_argument("--pos-weight", type=_float, default=2.0,
+                   help="extra loss weight of pixels on the turbine (1 + w x target)")
     t.add_argument("--max-steps", type=_positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -677,7 +682,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
                       epochs=args.epochs, batch=args.batch, lr=args.lr, seed=args.seed,
                       threads=args.threads, workers=args.workers, data_dir=args.data_dir,
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
-                      max_steps=args.max_steps)
+                      max_steps=args.max_steps, input_scale=args.input_scale,
+                      pos_weight=args.pos_weight)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

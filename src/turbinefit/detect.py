@@ -4,21 +4,23 @@
 package, :func:`default_model_path`) on RGB photos of any size:
 
 1. the photo is resized (bilinear, antialiased; :func:`turbinefit.io.images.resize_image`)
-   to the model's input width (``input_width`` of the model's metadata, 160 px for the
+   to the model's input width (``input_width`` of the model's metadata, 320 px for the
    shipped model) with the height following the photo's aspect ratio, then padded by edge
    replication to a multiple of the model's stride;
 2. the model gives seven heat-maps in [0, 1] (a sigmoid ends the graph), channel order of
-   :data:`turbinefit.heatmaps.CHANNEL_NAMES`;
+   :data:`turbinefit.heatmaps.CHANNEL_NAMES`, at ``1 / output_scale`` of its input size
+   (the shipped model: 160 x 120 maps of a 320 x 240 input);
 3. the padding is cut off and the maps are resized back to the photo's own size
    (bilinear, pixel centres aligned), float32 (7, H, W).
 
 So a heat-map pixel ``[c, i, j]`` is photo pixel ``u = j, v = i`` whatever the size; blobs
-and ridges are ``sigma_px`` (metadata, 1.5 for the shipped model) wide at the input width,
+and ridges are ``sigma_px`` (metadata, 3 for the shipped model) wide at the input width,
 i.e. ``sigma_px * W / input_width`` in the photo.
 
 Model files: ONNX with one input ``(batch, 3, height, width)`` float32 RGB in [0, 1] and one
-output ``(batch, 7, height, width)`` float32 in [0, 1], height and width dynamic; turbinefit
-writes its settings into the ONNX metadata (``turbinefit.*`` keys, see :class:`ModelInfo`).
+output ``(batch, 7, height / output_scale, width / output_scale)`` float32 in [0, 1],
+height and width dynamic; turbinefit writes its settings into the ONNX metadata
+(``turbinefit.*`` keys, see :class:`ModelInfo`; a model without ``output_scale`` has 1).
 A file that is not such a model is an :class:`~turbinefit.errors.InputError`.
 """
 
@@ -66,6 +68,7 @@ class ModelInfo:
         input_width: width [px] photos are resized to.
         input_height: height [px] of a 4:3 photo at that width (for reference).
         stride: the padded input's sides are multiples of it.
+        output_scale: the heat-maps are this many times smaller than the input (1 or 2).
         sigma_px: blob / ridge standard deviation of the training targets [px at the
             input width].
         threshold: peak value above which a point channel (base, tower top, hub) counts
@@ -80,6 +83,7 @@ class ModelInfo:
     input_width: int = 160
     input_height: int = 120
     stride: int = 16
+    output_scale: int = 1
     sigma_px: float = 1.5
     threshold: float = 0.3
     tip_threshold: float = 0.3
@@ -93,7 +97,7 @@ class ModelInfo:
     def from_metadata(meta: dict[str, str], path: Path) -> ModelInfo:
         kw: dict[str, object] = {}
         for name, typ in (("input_width", int), ("input_height", int), ("stride", int),
-                          ("sigma_px", float), ("threshold", float),
+                          ("output_scale", int), ("sigma_px", float), ("threshold", float),
                           ("tip_threshold", float), ("opset", int),
                           ("description", str)):
             key = f"turbinefit.{name}"
@@ -105,7 +109,9 @@ class ModelInfo:
                 raise InputError(f"model metadata {key}={meta[key]!r} is not a valid {typ.__name__}",
                                  path=path) from None
         info = ModelInfo(**kw)  # type: ignore[arg-type]
-        if info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0:
+        if (info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0
+                or info.output_scale not in (1, 2) or info.stride % info.output_scale
+                or info.input_width % info.output_scale):
             raise InputError(f"model metadata out of range: {info}", path=path)
         if not MIN_OPSET <= info.opset <= MAX_OPSET:
             raise InputError(f"model opset {info.opset} is not supported (need "
@@ -119,9 +125,10 @@ def default_model_path() -> Path:
 
 
 def model_input_size(width: int, height: int, info: ModelInfo) -> tuple[int, int]:
-    """(width, height) a ``width`` x ``height`` photo is resized to for the model."""
-    w = info.input_width
-    h = max(1, round(w * height / width))
+    """(width, height) a ``width`` x ``height`` photo is resized to for the model (the
+    height a multiple of ``output_scale``, nearest the photo's aspect ratio)."""
+    w, s = info.input_width, info.output_scale
+    h = s * max(1, round(w * height / width / s))
     return w, h
 
 
@@ -187,10 +194,12 @@ class HeatmapDetector:
         return (x.transpose(2, 0, 1).astype(np.float32) * (1.0 / 255.0)), (mw, mh)
 
     def detect_small(self, image: NDArray[np.uint8]) -> F32Array:
-        """Heat-maps (7, h, w) at the model's input size of one RGB uint8 photo."""
+        """Heat-maps (7, h, w) at the model's output size of one RGB uint8 photo (the
+        input size divided by ``output_scale``)."""
         x, (mw, mh) = self._prepare(image)
         out = self.session.run(None, {self._input: x[None]})[0][0]
-        return np.ascontiguousarray(out[:, :mh, :mw], dtype=np.float32)
+        s = self.info.output_scale
+        return np.ascontiguousarray(out[:, :mh // s, :mw // s], dtype=np.float32)
 
     def detect(self, image: NDArray[np.uint8], size: tuple[int, int] | None = None) -> F32Array:
         """Heat-maps (7, H, W) float32 in [0, 1] of one RGB uint8 photo (H, W, 3).

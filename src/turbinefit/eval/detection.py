@@ -17,6 +17,11 @@ of them are visible (in front of the camera and inside the image).
   precision (matched detections / detections).
 * **Lines** (tower, nacelle, blades): intersection over union of the regions above 0.5 in
   prediction and target, pooled over all images (sum of intersections / sum of unions).
+* **Biases** (what a fit over many keyframes adds up, where per-image medians hide it):
+  the mean signed error of matched blade tips along their blade (sub-pixel, positive =
+  outboard of the true tip, measured where the hub is visible), and of the detected tower
+  top along the tower (positive = towards the base, where the base is visible; detections
+  within ``match_px``).
 """
 
 from __future__ import annotations
@@ -36,6 +41,12 @@ _EPS = 1e-6
 def peak(channel: NDArray[np.floating]) -> tuple[float, float, float]:
     """(u, v, value) of a channel's maximum, sub-pixel (log-parabola) where bracketed."""
     i, j = np.unravel_index(int(np.argmax(channel)), channel.shape)
+    return refine(channel, int(i), int(j))
+
+
+def refine(channel: NDArray[np.floating], i: int, j: int) -> tuple[float, float, float]:
+    """(u, v, value) of the local maximum at row ``i``, column ``j``, sub-pixel
+    (log-parabola through its 4-neighbourhood) where bracketed."""
     val = float(channel[i, j])
     u, v = float(j), float(i)
     h, w = channel.shape
@@ -79,6 +90,8 @@ class DetectionStats:
     tips_true_detections: int = 0
     inter: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     union: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    tip_along: list[float] = field(default_factory=list)
+    top_along: list[float] = field(default_factory=list)
     images: int = 0
 
     def add(self, pred: NDArray[np.floating], target: NDArray[np.floating],
@@ -91,8 +104,10 @@ class DetectionStats:
                 self.point_visible[c] += 1
                 if val > self.threshold:
                     self.point_detected[c] += 1
-                    self.point_errors[c].append(float(np.hypot(u - points[c, 0],
-                                                               v - points[c, 1])))
+                    err = float(np.hypot(u - points[c, 0], v - points[c, 1]))
+                    self.point_errors[c].append(err)
+                    if c == 1 and visible[0] and err <= self.match_px:
+                        self.top_along.append(_along(u, v, points[1], points[0] - points[1]))
             else:
                 self.point_hidden[c] += 1
                 self.point_false[c] += int(val > self.threshold)
@@ -113,6 +128,9 @@ class DetectionStats:
                     continue
                 used_det.add(a)
                 used_tip.add(b)
+                if visible[2]:
+                    u, v, _ = refine(pred[3], int(det[a, 1]), int(det[a, 0]))
+                    self.tip_along.append(_along(u, v, tips[b], tips[b] - points[2]))
             self.tips_matched += len(used_tip)
             self.tips_true_detections += len(used_det)
         for k, c in enumerate((4, 5, 6)):
@@ -121,8 +139,9 @@ class DetectionStats:
             self.union[k] += float(np.count_nonzero(p | t))
 
     def summary(self) -> dict[str, float]:
-        """Figures: ``<point>_median_px``, ``<point>_detected``, ``<point>_false_peak``,
-        ``tips_recall``, ``tips_precision``, ``iou_<line>`` (NaN where undefined)."""
+        """Figures: ``<point>_median_px``, ``<point>_p90_px``, ``<point>_detected``,
+        ``<point>_false_peak``, ``tips_recall``, ``tips_precision``, ``iou_<line>``,
+        ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined)."""
         out: dict[str, float] = {"images": float(self.images)}
         for c, name in enumerate(POINT_NAMES3):
             e = self.point_errors[c]
@@ -134,7 +153,18 @@ class DetectionStats:
         out["tips_precision"] = _ratio(self.tips_true_detections, self.tips_detections)
         for k, name in enumerate(LINE_NAMES3):
             out[f"iou_{name}"] = _ratio(self.inter[k], self.union[k])
+        out["tip_bias_px"] = float(np.mean(self.tip_along)) if self.tip_along else float("nan")
+        out["tower_top_bias_px"] = (float(np.mean(self.top_along)) if self.top_along
+                                    else float("nan"))
         return out
+
+
+def _along(u: float, v: float, truth: NDArray[np.floating], axis: NDArray[np.floating]) -> float:
+    """Signed error of detection (u, v) from ``truth`` along ``axis`` (any length)."""
+    n = float(np.hypot(axis[0], axis[1]))
+    if n < 1e-9:
+        return 0.0
+    return float(((u - truth[0]) * axis[0] + (v - truth[1]) * axis[1]) / n)
 
 
 def _ratio(a: float, b: float) -> float:

@@ -4,18 +4,21 @@ Each sample is one view of one random scene: a random turbine
 (:func:`turbinefit.sim.turbines.sample_turbine`, with random shaft tilt and blade cone),
 a random scene look (:func:`turbinefit.sim.images.sample_scene`), a random camera (70 %
 varied training views of :func:`turbinefit.sim.images.sample_training_view`, 30 % keyframes
-of planned inspection flights, horizontal field of view 50-90 deg). The photo is rendered at
-:data:`RENDER_SCALE` times the model's input size and then resized exactly as
+of planned inspection flights, horizontal field of view 50-90 deg). Targets are the
+skeleton's heat-maps (:func:`turbinefit.sim.render.render_heatmaps`, no imperfections) at
+the heat-map size ``width`` x ``height``, with blob / ridge standard deviation
+:data:`TARGET_SIGMA_PX`; only the inspected turbine is labelled (neighbours in view are
+background, as in a labelled real flight). The photo is ``image_scale`` times the heat-map
+size (the model's input; 2 for the shipped model, which sees 320 x 240 photos and gives
+160 x 120 heat-maps): it is rendered at ``max(RENDER_SCALE, image_scale)`` times the
+heat-map size and, where that is larger than the input, resized exactly as
 :mod:`turbinefit.detect` resizes a user's photo, so the net sees the same resampling at
-training and at inference. Targets are the skeleton's heat-maps
-(:func:`turbinefit.sim.render.render_heatmaps`, no imperfections) at the model's input
-size, with blob / ridge standard deviation :data:`TARGET_SIGMA_PX`; only the inspected
-turbine is labelled (neighbours in view are background, as in a labelled real flight).
+training and at inference.
 
 A dataset folder (:func:`build_dataset`) holds ``.npy`` arrays, filled in place so that an
 interrupted build resumes where it stopped:
 
-* ``images.npy``   uint8 (N, H, W, 3) RGB,
+* ``images.npy``   uint8 (N, s H, s W, 3) RGB photos, s = ``image_scale``,
 * ``targets.npy``  uint8 (N, 7, H, W), heat-map values x 255,
 * ``points.npy``   float32 (N, 6, 2) projected model points [px] (garbage where not visible),
 * ``visible.npy``  bool (N, 6): point in front of the camera and inside the image,
@@ -23,7 +26,8 @@ interrupted build resumes where it stopped:
 * ``spec.json``    the :class:`DatasetSpec` (a folder of another spec is never reused).
 
 Sample ``i`` depends only on ``(seed, i)``, so datasets of different sizes share samples
-and any two workers produce the same bytes.
+and any two workers produce the same bytes; datasets that differ only in ``image_scale``
+show the same scenes.
 """
 
 from __future__ import annotations
@@ -52,8 +56,10 @@ from turbinefit.sim.trajectory import plan_inspection
 from turbinefit.sim.turbines import sample_turbine
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_points
 
-#: The model's input size [px] (width, height) for 4:3 photos.
+#: The model's heat-map size [px] (width, height) for 4:3 photos.
 MODEL_WIDTH, MODEL_HEIGHT = 160, 120
+#: The shipped model's input photos are this many times the heat-map size (320 x 240).
+IMAGE_SCALE = 2
 #: Blob / ridge standard deviation of the targets [px at the model's input size].
 TARGET_SIGMA_PX = 1.5
 #: Photos are rendered at this multiple of the model's input size, then resized.
@@ -68,8 +74,9 @@ _ARRAYS = ("images", "targets", "points", "visible", "done")
 
 @dataclass(frozen=True)
 class DatasetSpec:
-    """What a rendered dataset is: ``n_images`` samples ``seed``-determined, at
-    ``width`` x ``height`` [px] with target sigma ``sigma_px`` [px]."""
+    """What a rendered dataset is: ``n_images`` samples ``seed``-determined, heat-map
+    targets of ``width`` x ``height`` [px] with sigma ``sigma_px`` [px], photos
+    ``image_scale`` times that size."""
 
     n_images: int
     seed: int = 0
@@ -77,12 +84,15 @@ class DatasetSpec:
     height: int = MODEL_HEIGHT
     sigma_px: float = TARGET_SIGMA_PX
     version: int = DATA_VERSION
+    image_scale: int = IMAGE_SCALE
 
     def __post_init__(self) -> None:
         if self.n_images < 1:
             raise ValueError(f"n_images must be at least 1, got {self.n_images}")
         if self.width < 16 or self.height < 16:
             raise ValueError(f"image size must be at least 16x16, got {self.width}x{self.height}")
+        if self.image_scale not in (1, 2):
+            raise ValueError(f"image_scale must be 1 or 2, got {self.image_scale}")
 
 
 @dataclass(frozen=True)
@@ -127,14 +137,15 @@ def render_sample(spec: DatasetSpec, index: int) -> Sample:
     turbine = sample_turbine(rng, base_radius=0.0)
     geometry = _random_geometry(rng)
     small = _camera(rng, spec.width, spec.height)
-    big = small.resized(spec.width * RENDER_SCALE, spec.height * RENDER_SCALE)
+    render = max(RENDER_SCALE, spec.image_scale)
+    big = small.resized(spec.width * render, spec.height * render)
     if rng.uniform() < FLIGHT_FRACTION:
         pose = _flight_view(rng, turbine, geometry)
     else:
         pose = sample_training_view(rng, turbine, big, geometry)
     scene = sample_scene(rng, turbine)
     photo = render_image(big, pose, turbine.to_vector(), scene, rng, geometry)
-    image = resize_image(photo, spec.width, spec.height)
+    image = resize_image(photo, spec.width * spec.image_scale, spec.height * spec.image_scale)
     target = render_heatmaps(small, pose, turbine.to_vector(), geometry,
                              RenderConfig(sigma_px=spec.sigma_px))
     world_p, _ = model_points(turbine.to_vector(), geometry)
@@ -167,7 +178,9 @@ class Dataset:
 def read_spec(folder: Path) -> DatasetSpec:
     path = folder / "spec.json"
     try:
-        return DatasetSpec(**json.loads(path.read_text()))
+        fields = json.loads(path.read_text())
+        fields.setdefault("image_scale", 1)  # folders written before the field existed
+        return DatasetSpec(**fields)
     except FileNotFoundError as e:
         raise InputError("not a dataset folder (no spec.json)", path=folder) from e
     except (ValueError, TypeError) as e:
@@ -175,9 +188,9 @@ def read_spec(folder: Path) -> DatasetSpec:
 
 
 def _create(folder: Path, spec: DatasetSpec) -> None:
-    n, h, w = spec.n_images, spec.height, spec.width
+    n, h, w, s = spec.n_images, spec.height, spec.width, spec.image_scale
     shapes: dict[str, tuple[tuple[int, ...], type]] = {
-        "images": ((n, h, w, 3), np.uint8), "targets": ((n, NUM_CHANNELS, h, w), np.uint8),
+        "images": ((n, s * h, s * w, 3), np.uint8), "targets": ((n, NUM_CHANNELS, h, w), np.uint8),
         "points": ((n, 6, 2), np.float32), "visible": ((n, 6), np.bool_),
         "done": ((n,), np.bool_),
     }

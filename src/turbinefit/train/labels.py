@@ -1,11 +1,12 @@
 """Training samples from labelled real photos (COCO keypoints, :mod:`turbinefit.io.coco`).
 
 A photo is scaled (bilinear, antialiased) so that it covers the model's input size
-``width`` x ``height`` and centre-cropped to it (a 4:3 photo is only scaled); the labelled
-keypoints follow the same transform (pixel centres preserved) and the targets are drawn
-from them by :func:`turbinefit.sim.render.render_keypoint_heatmaps`: a blob per labelled
-point, a ridge per model line whose two ends are labelled. Every labelled turbine of a
-photo is a target.
+(``image_scale`` times the heat-map size ``width`` x ``height``) and centre-cropped to it
+(a 4:3 photo is only scaled); the labelled keypoints follow the same transform (pixel
+centres preserved) and the targets are drawn from them at the heat-map size by
+:func:`turbinefit.sim.render.render_keypoint_heatmaps`: a blob per labelled point, a ridge
+per model line whose two ends are labelled. Every labelled turbine of a photo is a
+target.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ from turbinefit.io.images import read_image, resize_image
 from turbinefit.sim.render import render_keypoint_heatmaps
 
 
-def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: float
-                    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-    """(image (height, width, 3) uint8, targets (7, height, width) uint8 x 255)."""
+def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: float,
+                    image_scale: int = 1) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """(image (s height, s width, 3) uint8, targets (7, height, width) uint8 x 255),
+    s = ``image_scale``; ``sigma_px`` at the heat-map size."""
     img = read_image(item.path)
+    width, height, tw, th = width * image_scale, height * image_scale, width, height
     h0, w0 = img.shape[:2]
     if (w0, h0) != (item.width, item.height):
         raise InputError(f"image is {w0}x{h0} but its label entry says {item.width}x"
@@ -35,9 +38,11 @@ def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: floa
     # pixel centre u maps to (u + 0.5) * (sw / w0) - 0.5 in the resized image
     fx, fy = sw / w0, sh / h0
     uvs, labs = [], []
+    # ... and u in the crop maps to (u + 0.5) / image_scale - 0.5 in the heat-maps
     for t in item.turbines:
-        uv = np.stack([(t.uv[:, 0] + 0.5) * fx - 0.5 - x0, (t.uv[:, 1] + 0.5) * fy - 0.5 - y0], -1)
+        uv = np.stack([((t.uv[:, 0] + 0.5) * fx - x0) / image_scale - 0.5,
+                       ((t.uv[:, 1] + 0.5) * fy - y0) / image_scale - 0.5], -1)
         uvs.append(uv)
         labs.append(t.visibility > 0)
-    maps = render_keypoint_heatmaps(height, width, uvs, labs, sigma_px)
+    maps = render_keypoint_heatmaps(th, tw, uvs, labs, sigma_px)
     return np.ascontiguousarray(crop), np.rint(maps * 255.0).astype(np.uint8)

@@ -50,10 +50,15 @@ def _conv(cin: int, cout: int, stride: int = 1, dilation: int = 1) -> nn.Sequent
 class HeatmapNet(nn.Module):
     """Image (B, 3, H, W) in [0, 1] -> heat-map logits (B, 7, H, W)."""
 
-    def __init__(self, widths: tuple[int, int, int, int] = WIDTHS, stem: int = 24) -> None:
+    def __init__(self, widths: tuple[int, int, int, int] = WIDTHS, stem: int = 24,
+                 input_scale: int = 1) -> None:
         super().__init__()
+        if input_scale not in (1, 2):
+            raise ValueError(f"input_scale must be 1 or 2, got {input_scale}")
         w1, w2, w3, w4 = widths
-        self.stem = _conv(3, stem, stride=2)
+        self.input_scale = input_scale
+        self.pre: nn.Module = _conv(3, 16, stride=2) if input_scale == 2 else nn.Identity()
+        self.stem = _conv(16 if input_scale == 2 else 3, stem, stride=2)
         self.enc1 = _conv(stem, w1)
         self.enc2 = nn.Sequential(_conv(w1, w2, stride=2), _conv(w2, w2))
         self.enc3 = nn.Sequential(_conv(w2, w3, stride=2), _conv(w3, w3))
@@ -72,7 +77,7 @@ class HeatmapNet(nn.Module):
         return F.interpolate(x, size=like.shape[-2:], mode="bilinear", align_corners=False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        e1 = self.enc1(self.stem(x))
+        e1 = self.enc1(self.stem(self.pre(x)))
         e2 = self.enc2(e1)
         e3 = self.enc3(e2)
         e4 = self.enc4(e3)
@@ -84,3 +89,38 @@ class HeatmapNet(nn.Module):
 
 def num_parameters(net: nn.Module) -> int:
     return sum(p.numel() for p in net.parameters())
+
+
+def lift_to_input_scale_2(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Weights of an input-scale-1 net (160 x 120 photos) as an input-scale-2 net (320 x
+    240 photos) that starts out computing nearly the same heat-maps.
+
+    The new full-resolution layer ``pre`` passes R, G, B on as a 2x blur-downsample (a
+    [1, 2, 1] / 4 tent, which is close to the antialiased bilinear resize the old net was
+    fed; its batch norm is set to the identity on typical image statistics) in its first
+    three channels, and its other channels start small and random; the stem reads those
+    three channels with the old stem's weights and the others with zeros. Everything else
+    is copied. Fine-tuning then learns what the full resolution adds (thin blade tips,
+    small far turbines) without starting from scratch.
+    """
+    net = HeatmapNet(input_scale=2)
+    new = {k: v.clone() for k, v in net.state_dict().items()}
+    for k, v in state.items():
+        if k == "stem.0.weight":
+            w = torch.zeros_like(new[k])
+            w[:, :3] = v
+            new[k] = w
+        elif k in new:
+            new[k] = v.clone()
+    tent = torch.tensor([0.25, 0.5, 0.25])
+    w = 0.1 * new["pre.0.weight"]
+    w[:3] = 0.0
+    for c in range(3):
+        w[c, c] = tent[:, None] * tent[None, :]
+    new["pre.0.weight"] = w
+    # batch norm ~ identity for pixel values of mean 0.45 and standard deviation 0.25
+    new["pre.1.weight"][:3] = 0.25
+    new["pre.1.bias"][:3] = 0.45
+    new["pre.1.running_mean"][:3] = 0.45
+    new["pre.1.running_var"][:3] = 0.0625
+    return new

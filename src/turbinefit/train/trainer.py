@@ -16,8 +16,11 @@ Output folder::
 
 Loss: binary cross-entropy between the sigmoid of the logits and the soft Gaussian targets,
 each pixel weighted ``1 + pos_weight * target``; the per-pixel optimum stays at
-prediction = target (the weight depends on the target only), but the few pixels on the
-turbine count as much as the many on the background.
+prediction = target where the target is certain (the weight depends on the target only),
+and the few pixels on the turbine count more than the many on the background. Where the
+net is unsure, the weight inflates its answer (a pixel on the target with probability q
+comes out above 0.5 once q > 1 / (1 + pos_weight)): the default 2 paints lines about as
+wide as their targets, where 10 painted a third too much.
 
 Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
 brightness / contrast / colour jitter; the renderer provides the rest of the variety.
@@ -51,6 +54,7 @@ from turbinefit.errors import InputError
 from turbinefit.eval.detection import DetectionStats
 from turbinefit.io.atomic import write_bytes_atomic, write_text_atomic
 from turbinefit.sim.dataset import (
+    IMAGE_SCALE,
     MODEL_HEIGHT,
     MODEL_WIDTH,
     TARGET_SIGMA_PX,
@@ -58,13 +62,14 @@ from turbinefit.sim.dataset import (
     DatasetSpec,
     build_dataset,
 )
-from turbinefit.train.net import STRIDE, HeatmapNet, num_parameters
+from turbinefit.train.net import STRIDE, HeatmapNet, lift_to_input_scale_2, num_parameters
 
 #: Seed offset of the held-out renders (independent of the training renders).
 VAL_SEED_OFFSET = 1_000_003
 OPSET = 17
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
-_RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels")
+_RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
+                "input_scale", "pos_weight")
 
 
 @dataclass
@@ -89,6 +94,10 @@ class TrainConfig:
         init: ``weights.npz`` to start from (fine-tuning); default for ``labels`` is the
             shipped model's weights.
         max_steps: stop after this many steps in all (tests); None = no limit.
+        input_scale: the net's input photos are this many times its 160 x 120 heat-maps
+            (2: 320 x 240 photos, the shipped model; 1: 160 x 120). ``init`` weights of
+            input scale 1 are lifted to 2 (:func:`~turbinefit.train.net.lift_to_input_scale_2`);
+            fine-tuning the shipped model on labels keeps its scale.
     """
 
     out_dir: Path
@@ -98,7 +107,7 @@ class TrainConfig:
     batch: int = 16
     lr: float = 2e-3
     weight_decay: float = 1e-4
-    pos_weight: float = 10.0
+    pos_weight: float = 2.0
     seed: int = 0
     threads: int = 1
     workers: int | None = None
@@ -107,6 +116,7 @@ class TrainConfig:
     images_dir: Path | None = None
     init: Path | None = None
     max_steps: int | None = None
+    input_scale: int = IMAGE_SCALE
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -116,6 +126,10 @@ class TrainConfig:
             raise InputError(f"must be >= 0, got {self.val_images}", field="val_images")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise InputError(f"must be positive, got {self.lr}", field="lr")
+        if not (self.pos_weight >= 0 and math.isfinite(self.pos_weight)):
+            raise InputError(f"must be >= 0, got {self.pos_weight}", field="pos_weight")
+        if self.input_scale not in (1, 2):
+            raise InputError(f"must be 1 or 2, got {self.input_scale}", field="input_scale")
         if (self.labels is None) != (self.images_dir is None):
             raise InputError("--labels and --images-dir go together", field="labels")
 
@@ -150,18 +164,15 @@ def _jitter(x: torch.Tensor) -> torch.Tensor:
     return ((x - mean) * contrast + mean).mul(gain * colour).clamp(0.0, 1.0)
 
 
-def _pad(x: torch.Tensor) -> tuple[torch.Tensor, int, int]:
+def forward(net: HeatmapNet, x: torch.Tensor) -> torch.Tensor:
+    """Logits (B, 7, H / s, W / s) of images (B, 3, H, W), s = ``net.input_scale`` (H and W
+    multiples of s; the input is padded to the net's stride by edge replication)."""
+    s = net.input_scale
     h, w = x.shape[-2:]
-    ph, pw = (-h) % STRIDE, (-w) % STRIDE
+    ph, pw = (-h) % (STRIDE * s), (-w) % (STRIDE * s)
     if ph or pw:
         x = F.pad(x, (0, pw, 0, ph), mode="replicate")
-    return x, h, w
-
-
-def forward(net: torch.nn.Module, x: torch.Tensor) -> torch.Tensor:
-    """Logits (B, 7, H, W) of images (B, 3, H, W) of any size (padded to the stride)."""
-    xp, h, w = _pad(x)
-    return net(xp.contiguous(memory_format=torch.channels_last))[..., :h, :w]
+    return net(x.contiguous(memory_format=torch.channels_last))[..., :h // s, :w // s]
 
 
 def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float) -> torch.Tensor:
@@ -170,16 +181,30 @@ def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float) 
     return (F.binary_cross_entropy_with_logits(logits, target, reduction="none") * w).mean()
 
 
-def _load_npz(net: HeatmapNet, path: Path) -> None:
+
+def load_npz(path: Path, input_scale: int | None = None) -> HeatmapNet:
+    """The net of a ``weights.npz``, of ``input_scale`` (default: that of the weights,
+    read off them: only a net of input scale 2 has the full-resolution ``pre`` layer).
+    Weights of input scale 1 are lifted to 2 by
+    :func:`~turbinefit.train.net.lift_to_input_scale_2`; 2 cannot go back to 1."""
     try:
         with np.load(path) as z:
             state = {k: torch.from_numpy(z[k]) for k in z.files}
     except (OSError, ValueError) as e:
         raise InputError(f"cannot read weights: {e}", path=path) from e
+    have = 2 if "pre.0.weight" in state else 1
+    scale = input_scale or have
+    if have == 2 and scale == 1:
+        raise InputError("weights are of a net of input scale 2; they cannot start one of "
+                         "input scale 1", path=path)
+    if have == 1 and scale == 2:
+        state = lift_to_input_scale_2(state)
+    net = HeatmapNet(input_scale=scale)
     try:
         net.load_state_dict(state)
     except RuntimeError as e:
         raise InputError(f"weights do not fit the net: {str(e).splitlines()[0]}", path=path) from e
+    return net
 
 
 def save_npz(net: torch.nn.Module, path: Path) -> None:
@@ -212,7 +237,8 @@ def export_onnx(net: HeatmapNet, path: Path, info: ModelInfo) -> Path:
     was_training = net.training
     net.eval()
     buf = io.BytesIO()
-    dummy = torch.rand(1, 3, info.input_height + (-info.input_height) % STRIDE, info.input_width)
+    dummy = torch.rand(1, 3, info.input_height + (-info.input_height) % info.stride,
+                       info.input_width)
     dyn = {0: "batch", 2: "height", 3: "width"}
     with torch.no_grad(), warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -237,7 +263,7 @@ class EpochRecord:
     metrics: dict[str, float]
 
 
-def evaluate(net: torch.nn.Module, images: NDArray[np.uint8], targets: NDArray[np.uint8],
+def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uint8],
              points: NDArray[np.floating], visible: NDArray[np.bool_], pos_weight: float,
              thresholds: tuple[float, ...] = (0.3,), batch: int = 32,
              tip_threshold: float | None = None
@@ -305,7 +331,7 @@ def _write_history(path: Path, history: list[EpochRecord]) -> None:
     write_text_atomic(path, out.getvalue())
 
 
-def _calibrated_metrics(net: torch.nn.Module, val: Dataset, pos_weight: float,
+def _calibrated_metrics(net: HeatmapNet, val: Dataset, pos_weight: float,
                         grid: tuple[float, ...]
                         ) -> tuple[float, dict[str, float], tuple[float, float]]:
     """Held-out loss, metrics at the calibrated thresholds, and those thresholds."""
@@ -340,7 +366,7 @@ def _config_dict(cfg: TrainConfig) -> dict[str, Any]:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
 
 
-def _labelled_arrays(cfg: TrainConfig) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+def _labelled_arrays(cfg: TrainConfig, scale: int) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     from turbinefit.io.coco import read_coco_keypoints
     from turbinefit.train.labels import labelled_sample
 
@@ -348,7 +374,7 @@ def _labelled_arrays(cfg: TrainConfig) -> tuple[NDArray[np.uint8], NDArray[np.ui
     labelled = read_coco_keypoints(cfg.labels, cfg.images_dir)
     if not labelled:
         raise InputError("no images in the label file", path=cfg.labels)
-    imgs, tgts = zip(*(labelled_sample(li, MODEL_WIDTH, MODEL_HEIGHT, TARGET_SIGMA_PX)
+    imgs, tgts = zip(*(labelled_sample(li, MODEL_WIDTH, MODEL_HEIGHT, TARGET_SIGMA_PX, scale)
                        for li in labelled), strict=True)
     return np.stack(imgs), np.stack(tgts)
 
@@ -362,17 +388,18 @@ def train(cfg: TrainConfig, progress: bool = True,
     torch.manual_seed(cfg.seed)
 
     # Everything that can be wrong with the inputs is checked before anything is written.
-    net = HeatmapNet().to(memory_format=torch.channels_last)  # type: ignore[call-overload]
-    labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
-    if cfg.labels is not None:
-        labelled = _labelled_arrays(cfg)
-        log(f"{len(labelled[0])} labelled photos from {cfg.labels}")
     init = cfg.init
     if init is None and cfg.labels is not None:
         from turbinefit.detect import default_model_path
         init = default_model_path().with_suffix(".npz")
-    if init is not None:
-        _load_npz(net, Path(init))
+    net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale) if init is not None
+           else HeatmapNet(input_scale=cfg.input_scale))
+    net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+    scale = net.input_scale
+    labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
+    if cfg.labels is not None:
+        labelled = _labelled_arrays(cfg, scale)
+        log(f"{len(labelled[0])} labelled photos from {cfg.labels}")
     resume: dict[str, Any] | None = None
     if ckpt_path.exists():
         try:
@@ -389,12 +416,14 @@ def train(cfg: TrainConfig, progress: bool = True,
 
     out.mkdir(parents=True, exist_ok=True)
     data_dir = cfg.data_dir or (out / "data")
-    rendered = build_dataset(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}",
-                             DatasetSpec(cfg.n_images, cfg.seed), cfg.workers, progress)
+    rendered = build_dataset(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}",
+                             DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale),
+                             cfg.workers, progress)
     val: Dataset | None = None
     if cfg.val_images:
-        val = build_dataset(data_dir / f"val-n{cfg.val_images}-s{cfg.seed}",
-                            DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET),
+        val = build_dataset(data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}",
+                            DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET,
+                                        image_scale=scale),
                             cfg.workers, progress)
     parts: list[_Arrays] = [_Arrays(rendered.images, rendered.targets, augment=True)]
     if labelled is not None:
@@ -473,8 +502,9 @@ def train(cfg: TrainConfig, progress: bool = True,
     desc = (f"HeatmapNet {num_parameters(net)} params; {cfg.n_images} renders seed {cfg.seed}"
             f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
             f"{' from ' + Path(init).name if init is not None else ''}")
-    info = ModelInfo(input_width=MODEL_WIDTH, input_height=MODEL_HEIGHT, stride=STRIDE,
-                     sigma_px=TARGET_SIGMA_PX, threshold=threshold,
+    info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
+                     stride=STRIDE * scale, output_scale=scale,
+                     sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
                      tip_threshold=tip_threshold, opset=OPSET,
                      description=desc)
     model_path = export_onnx(net, out / "model.onnx", info)
