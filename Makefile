@@ -40,7 +40,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_detect.py
 	$(BIN)/python benchmarks/bench_track.py
 
-## model: train the shipped heat-map CNN from scratch (about 1.5 h on 2 cores)
+## model: train a heat-map CNN like the shipped one from scratch (320x240 photos, 160x120
+##        heat-maps; several hours on 2 cores; see the README for how the shipped one was made)
 model: $(STAMP)
 	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS)
 	cp models/heatmap_cnn/model.onnx src/turbinefit/models/heatmap_cnn.onnx

@@ -56,6 +56,12 @@ def test_shipped_model_finds_the_hub(detector: HeatmapDetector, samples: list) -
 
 
 
+def test_shipped_model_sees_320_px_photos(detector: HeatmapDetector) -> None:
+    info = detector.info
+    assert (info.input_width, info.output_scale, info.stride) == (320, 2, 32)
+    assert model_input_size(4000, 3000, info) == (320, 240)
+    assert model_input_size(3000, 2000, info) == (320, 214)  # 3:2, height even
+
 def test_model_input_size_keeps_the_aspect_and_the_output_scale() -> None:
     one = ModelInfo(input_width=160)
     two = ModelInfo(input_width=320, input_height=240, stride=32, output_scale=2)

@@ -1,12 +1,16 @@
 """The heat-map CNN: a compact U-Net-like encoder-decoder with a strided stem (PyTorch).
 
-Input: an RGB image batch (B, 3, H, W), float32 in [0, 1], H and W multiples of
-:data:`STRIDE` (the caller pads). Output: logits (B, 7, H, W) at the input's own size, one
-channel per heat-map of :data:`turbinefit.heatmaps.CHANNEL_NAMES`; ``sigmoid(logits)`` are
-the heat-maps.
+Input: an RGB image batch (B, 3, s H, s W), float32 in [0, 1], s = ``input_scale`` (1 or
+2), H and W multiples of :data:`STRIDE` (the caller pads). Output: logits (B, 7, H, W),
+one channel per heat-map of :data:`turbinefit.heatmaps.CHANNEL_NAMES`;
+``sigmoid(logits)`` are the heat-maps. The shipped model has s = 2: it sees 320 x 240
+photos and gives 160 x 120 heat-maps.
 
-Shape of the net (channels at each scale, input 160 x 120):
+Shape of the net (channels at each scale, heat-maps 160 x 120):
 
+* pre (s = 2 only): a 3x3 stride-2 convolution (16 channels) from the 320 x 240 photo to
+  160 x 120, so the net sees what the full resolution shows (a blade tip 1-2 px wide, a
+  far turbine 10 px tall) for a few per cent more work;
 * stem: 3x3 stride-2 convolution to 1/2 resolution (80 x 60), so that the expensive
   layers never run at full resolution;
 * encoder: double 3x3 conv blocks at 1/2, 1/4, 1/8 and 1/16 resolution, the last one with
@@ -20,9 +24,12 @@ Shape of the net (channels at each scale, input 160 x 120):
   convolution.
 
 Every convolution is followed by batch norm and ReLU (batch norm folds into the
-convolutions at ONNX export). About 0.63 M parameters. Measured here (one thread,
-channels-last, batch 16 of 160 x 128): ~60 training samples/s; a full-resolution head
-(3x3 convs at 160 x 128) halved that, for no visible gain in peak placement.
+convolutions at ONNX export). About 0.63 M parameters. Measured on the machine that
+trained the first model (one thread, channels-last, batch 16 of 160 x 128): ~60 training
+samples/s, and a full-resolution head (3x3 convs at 160 x 128) halved that, for no
+visible gain in peak placement. On this project's current 2-core machine the same net
+trains at ~12 samples/s on one thread and ~19 on two, and s = 2 costs ~10 % more than
+s = 1.
 """
 
 from __future__ import annotations
