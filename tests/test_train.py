@@ -211,6 +211,31 @@ def test_train_cli_smoke_resume_and_fine_tune(tmp_path: Path, capsys: pytest.Cap
     assert (ft / "model.onnx").is_file()
 
 
+def test_train_lifts_160_px_weights_to_320_px(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """--init weights of a 160-px net with --input-scale 2 start a 320-px net; weights of
+    a 320-px net cannot start a 160-px one (one line, exit 2, nothing written)."""
+    from turbinefit.train.trainer import save_npz
+
+    save_npz(HeatmapNet(input_scale=1), tmp_path / "old.npz")
+    out = tmp_path / "lifted"
+    common = ["--images", "16", "--val-images", "0", "--epochs", "1", "--batch", "8",
+              "--workers", "1", "--quiet", "--data", str(tmp_path / "data"), "--max-steps", "1"]
+    assert main(["train", "--out", str(out), "--init", str(tmp_path / "old.npz"),
+                 "--input-scale", "2", *common]) == 0
+    det = HeatmapDetector(out / "model.onnx", threads=1)
+    assert (det.info.input_width, det.info.output_scale) == (320, 2)
+    with np.load(out / "weights.npz") as z:
+        assert "pre.0.weight" in z.files
+    capsys.readouterr()
+    back = tmp_path / "back"
+    assert main(["train", "--out", str(back), "--init", str(out / "weights.npz"),
+                 "--input-scale", "1", *common]) == 2
+    err = capsys.readouterr().err
+    assert "input scale 2" in err and len(err.strip().splitlines()) == 1
+    assert not back.exists()
+
+
 @pytest.mark.parametrize("bad", ["missing", "unknown_name", "weights"])
 def test_train_bad_labels(tmp_path: Path, bad: str, capsys: pytest.CaptureFixture[str]) -> None:
     write_png(tmp_path / "a.png", np.zeros((120, 160, 3), np.uint8))

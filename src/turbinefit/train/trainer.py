@@ -181,7 +181,6 @@ def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float) 
     return (F.binary_cross_entropy_with_logits(logits, target, reduction="none") * w).mean()
 
 
-
 def load_npz(path: Path, input_scale: int | None = None) -> HeatmapNet:
     """The net of a ``weights.npz``, of ``input_scale`` (default: that of the weights,
     read off them: only a net of input scale 2 has the full-resolution ``pre`` layer).
@@ -197,11 +196,9 @@ def load_npz(path: Path, input_scale: int | None = None) -> HeatmapNet:
     if have == 2 and scale == 1:
         raise InputError("weights are of a net of input scale 2; they cannot start one of "
                          "input scale 1", path=path)
-    if have == 1 and scale == 2:
-        state = lift_to_input_scale_2(state)
     net = HeatmapNet(input_scale=scale)
     try:
-        net.load_state_dict(state)
+        net.load_state_dict(lift_to_input_scale_2(state) if have < scale else state)
     except RuntimeError as e:
         raise InputError(f"weights do not fit the net: {str(e).splitlines()[0]}", path=path) from e
     return net
