@@ -278,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="weights.npz to start from (default with --labels: the shipped model)")
     t.add_argument("--input-scale", type=int, choices=(1, 2), default=2,
                    help="the net's input photos are this many times its 160x120 heat-maps "
-                   "(2: 320x240 photos, as the shipped model; with --init the weights decide)")
+                   "(2: 320x240 photos, as the shipped model; --init weights of a 1 net are lifted "
+                   "to 2; fine-tuning the shipped model on --labels keeps its scale)")
     t.add_argument("--pos-weight", type=_float, default=2.0,
                    help="extra loss weight of pixels on the turbine (1 + w x target)")
     t.add_argument("--max-steps", type=_positive_int, default=None,

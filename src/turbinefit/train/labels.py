@@ -25,24 +25,24 @@ def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: floa
     """(image (s height, s width, 3) uint8, targets (7, height, width) uint8 x 255),
     s = ``image_scale``; ``sigma_px`` at the heat-map size."""
     img = read_image(item.path)
-    width, height, tw, th = width * image_scale, height * image_scale, width, height
+    iw, ih = width * image_scale, height * image_scale  # the model's input size
     h0, w0 = img.shape[:2]
     if (w0, h0) != (item.width, item.height):
         raise InputError(f"image is {w0}x{h0} but its label entry says {item.width}x"
                          f"{item.height}", path=item.path)
-    s = max(width / w0, height / h0)
-    sw, sh = max(width, round(w0 * s)), max(height, round(h0 * s))
+    s = max(iw / w0, ih / h0)
+    sw, sh = max(iw, round(w0 * s)), max(ih, round(h0 * s))
     big = resize_image(img, sw, sh)
-    x0, y0 = (sw - width) // 2, (sh - height) // 2
-    crop = big[y0:y0 + height, x0:x0 + width]
-    # pixel centre u maps to (u + 0.5) * (sw / w0) - 0.5 in the resized image
+    x0, y0 = (sw - iw) // 2, (sh - ih) // 2
+    crop = big[y0:y0 + ih, x0:x0 + iw]
+    # pixel centre u maps to (u + 0.5) * (sw / w0) - 0.5 in the resized image, and u in
+    # the crop to (u + 0.5) / image_scale - 0.5 in the heat-maps
     fx, fy = sw / w0, sh / h0
     uvs, labs = [], []
-    # ... and u in the crop maps to (u + 0.5) / image_scale - 0.5 in the heat-maps
     for t in item.turbines:
         uv = np.stack([((t.uv[:, 0] + 0.5) * fx - x0) / image_scale - 0.5,
                        ((t.uv[:, 1] + 0.5) * fy - y0) / image_scale - 0.5], -1)
         uvs.append(uv)
         labs.append(t.visibility > 0)
-    maps = render_keypoint_heatmaps(th, tw, uvs, labs, sigma_px)
+    maps = render_keypoint_heatmaps(height, width, uvs, labs, sigma_px)
     return np.ascontiguousarray(crop), np.rint(maps * 255.0).astype(np.uint8)
