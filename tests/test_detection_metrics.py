@@ -66,3 +66,25 @@ def test_biases_are_nan_without_matches() -> None:
     st.add(np.zeros((7, 60, 80)), np.zeros((7, 60, 80)), np.zeros((6, 2)), np.zeros(6, bool))
     m = st.summary()
     assert np.isnan(m["tip_bias_px"]) and np.isnan(m["tower_top_bias_px"])
+
+
+def test_px_scale_reports_distances_in_input_pixels() -> None:
+    """Maps 3 px (grid) off: at px_scale 2 errors and biases double, and the 5 px match
+    radius is in input pixels, so tips 6 input px away no longer match."""
+    uv = np.array([[40, 55], [40, 15], [44, 15], [44, 3], [34, 21], [54, 21]], float)
+    vis = np.ones(6, bool)
+    target = _maps(uv, vis)
+    moved = uv.copy()
+    for i in (3, 4, 5):
+        d = uv[2] - uv[i]
+        moved[i] += 3.0 * d / np.hypot(*d)
+    moved[0, 0] += 1.0
+    pred = _maps(moved, vis)
+    grid, photo = DetectionStats(threshold=0.5), DetectionStats(threshold=0.5, px_scale=2.0)
+    for st in (grid, photo):
+        st.add(pred, target, uv, vis)
+    g, p = grid.summary(), photo.summary()
+    assert g["base_median_px"] == pytest.approx(1.0, abs=0.05)
+    assert p["base_median_px"] == pytest.approx(2.0, abs=0.1)
+    assert g["tips_recall"] == 1.0 and g["tip_bias_px"] == pytest.approx(-3.0, abs=0.1)
+    assert p["tips_recall"] == 0.0 and p["tips_precision"] == 0.0

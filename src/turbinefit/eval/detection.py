@@ -1,8 +1,11 @@
 """How good are heat-maps? Detection metrics of predicted heat-maps against the truth.
 
-All in pixels of the heat-maps' own grid. Inputs per image: predicted heat-maps (7, H, W)
-in [0, 1], the target heat-maps (7, H, W), the projected model points (6, 2) [px] and which
-of them are visible (in front of the camera and inside the image).
+Inputs per image: predicted heat-maps (7, H, W) in [0, 1], the target heat-maps (7, H, W),
+the projected model points (6, 2) [px of the heat-map grid] and which of them are visible
+(in front of the camera and inside the image). Distances (errors, ``match_px``, biases) are
+in pixels of an image ``px_scale`` times the heat-map size: 1 (the default) for the
+heat-maps' own grid, the model's output scale for the pixels of the photos it takes (a
+model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
 
 * **Points** (base, tower top, hub): the channel's maximum, refined to sub-pixel by a
   log-parabola through its 4-neighbourhood, is the detection if above ``threshold``.
@@ -79,6 +82,7 @@ class DetectionStats:
     match_px: float = 5.0
     tip_threshold: float | None = None
     nms_px: int = 7
+    px_scale: float = 1.0
     point_errors: list[list[float]] = field(default_factory=lambda: [[], [], []])
     point_visible: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
     point_detected: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
@@ -98,16 +102,18 @@ class DetectionStats:
             points: NDArray[np.floating], visible: NDArray[np.bool_]) -> None:
         """Add one image (see the module docstring for the arguments)."""
         self.images += 1
+        px = self.px_scale
         for c in range(3):
             u, v, val = peak(pred[c])
             if visible[c]:
                 self.point_visible[c] += 1
                 if val > self.threshold:
                     self.point_detected[c] += 1
-                    err = float(np.hypot(u - points[c, 0], v - points[c, 1]))
+                    err = px * float(np.hypot(u - points[c, 0], v - points[c, 1]))
                     self.point_errors[c].append(err)
                     if c == 1 and visible[0] and err <= self.match_px:
-                        self.top_along.append(_along(u, v, points[1], points[0] - points[1]))
+                        self.top_along.append(
+                            px * _along(u, v, points[1], points[0] - points[1]))
             else:
                 self.point_hidden[c] += 1
                 self.point_false[c] += int(val > self.threshold)
@@ -117,7 +123,8 @@ class DetectionStats:
         self.tips_visible += len(tips)
         self.tips_detections += len(det)
         if len(tips) and len(det):
-            d = np.hypot(det[:, None, 0] - tips[None, :, 0], det[:, None, 1] - tips[None, :, 1])
+            d = px * np.hypot(det[:, None, 0] - tips[None, :, 0],
+                             det[:, None, 1] - tips[None, :, 1])
             used_det: set[int] = set()
             used_tip: set[int] = set()
             for k in np.argsort(d, axis=None):
@@ -130,7 +137,7 @@ class DetectionStats:
                 used_tip.add(b)
                 if visible[2]:
                     u, v, _ = refine(pred[3], int(det[a, 1]), int(det[a, 0]))
-                    self.tip_along.append(_along(u, v, tips[b], tips[b] - points[2]))
+                    self.tip_along.append(px * _along(u, v, tips[b], tips[b] - points[2]))
             self.tips_matched += len(used_tip)
             self.tips_true_detections += len(used_det)
         for k, c in enumerate((4, 5, 6)):
