@@ -17,12 +17,14 @@ pytest.importorskip("onnx")
 
 from turbinefit.cli import main  # noqa: E402
 from turbinefit.detect import HeatmapDetector, ModelInfo  # noqa: E402
+from turbinefit.errors import InputError  # noqa: E402
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints  # noqa: E402
 from turbinefit.io.images import read_image, resize_image, write_png  # noqa: E402
 from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # noqa: E402
 from turbinefit.train.labels import labelled_sample  # noqa: E402
 from turbinefit.train.net import HeatmapNet, lift_to_input_scale_2, num_parameters  # noqa: E402
 from turbinefit.train.trainer import (  # noqa: E402
+    TrainConfig,
     _jitter,
     export_onnx,
     forward,
@@ -93,6 +95,31 @@ def test_loss_optimum_is_the_target() -> None:
     loss = heatmap_loss(logits.view(1, 1, 1, 4), target.view(1, 1, 1, 4), pos_weight=10.0)
     (g,) = torch.autograd.grad(loss, logits)
     assert float(g.abs().max()) < 1e-3
+
+
+def test_channel_weights_scale_each_channel_and_keep_its_optimum() -> None:
+    target = torch.rand(1, 7, 3, 4)
+    logits = torch.randn(1, 7, 3, 4)
+    w = (1.0, 0.0, 1.0, 3.0, 1.0, 2.0, 1.0)
+    per_channel = [float(heatmap_loss(logits[:, c:c + 1], target[:, c:c + 1], 2.0)) for c in range(7)]
+    want = sum(wc * lc for wc, lc in zip(w, per_channel, strict=True)) / 7
+    assert float(heatmap_loss(logits, target, 2.0, w)) == pytest.approx(want, rel=1e-5)
+    at_target = torch.logit(target.clamp(1e-4, 1 - 1e-4)).requires_grad_(True)
+    (g,) = torch.autograd.grad(heatmap_loss(at_target, target, 2.0, w), at_target)
+    assert float(g.abs().max()) < 1e-3
+
+
+def test_bad_channel_weights_are_one_clear_error(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    for bad in ("1,1,1", "1,1,1,3,1,2,x", "1,1,1,-3,1,2,1"):
+        with pytest.raises(SystemExit) as e:
+            main(["train", "--out", str(tmp_path / "m"), "--channel-weights", bad])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert "--channel-weights" in err[-1] and "Traceback" not in "\n".join(err)
+    with pytest.raises(InputError, match="channel_weights"):
+        TrainConfig(out_dir=tmp_path, channel_weights=(0.0,) * 7)
+    assert not (tmp_path / "m").exists()
 
 
 def test_a_few_steps_reduce_the_loss(tmp_path: Path) -> None:

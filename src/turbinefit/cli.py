@@ -7,6 +7,7 @@ heavy modules are imported only by the command that needs them.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -53,6 +54,18 @@ def _float(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def _channel_weights(text: str) -> tuple[float, ...]:
+    """Seven comma-separated non-negative numbers (one loss weight per heat-map channel)."""
+    try:
+        w = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 7 comma-separated numbers, got {text!r}"
+                                         ) from None
+    if len(w) != 7 or not all(x >= 0 and math.isfinite(x) for x in w):
+        raise argparse.ArgumentTypeError(f"expected 7 comma-separated numbers >= 0, got {text!r}")
+    return w
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -282,6 +295,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "to 2; fine-tuning the shipped model on --labels keeps its scale)")
     t.add_argument("--pos-weight", type=_float, default=2.0,
                    help="extra loss weight of pixels on the turbine (1 + w x target)")
+    t.add_argument("--channel-weights", type=_channel_weights, default=(1.0,) * 7,
+                   metavar="W,W,W,W,W,W,W",
+                   help="loss weight of each channel (base, tower_top, hub, tip, line_tower, "
+                   "line_nacelle, line_blade); the shipped model's last fine-tuning used "
+                   "1,1,1,3,1,2,1")
     t.add_argument("--max-steps", type=_positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -684,7 +702,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                       threads=args.threads, workers=args.workers, data_dir=args.data_dir,
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
-                      pos_weight=args.pos_weight)
+                      pos_weight=args.pos_weight, channel_weights=args.channel_weights)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

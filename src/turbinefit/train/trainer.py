@@ -20,7 +20,10 @@ prediction = target where the target is certain (the weight depends on the targe
 and the few pixels on the turbine count more than the many on the background. Where the
 net is unsure, the weight inflates its answer (a pixel on the target with probability q
 comes out above 0.5 once q > 1 / (1 + pos_weight)): the default 2 paints lines about as
-wide as their targets, where 10 painted a third too much.
+wide as their targets, where 10 painted a third too much. ``channel_weights`` multiply
+each channel's loss (both its positive and its background pixels, so each channel's
+per-pixel optimum is unchanged): they only share the net's effort differently. The shipped
+model's last fine-tuning weighted the tip channel 3 and the nacelle 2.
 
 Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
 brightness / contrast / colour jitter; the renderer provides the rest of the variety.
@@ -52,6 +55,7 @@ from tqdm import tqdm
 from turbinefit.detect import ModelInfo
 from turbinefit.errors import InputError
 from turbinefit.eval.detection import DetectionStats
+from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.io.atomic import write_bytes_atomic, write_text_atomic
 from turbinefit.sim.dataset import (
     IMAGE_SCALE,
@@ -69,7 +73,7 @@ VAL_SEED_OFFSET = 1_000_003
 OPSET = 17
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
-                "input_scale", "pos_weight")
+                "input_scale", "pos_weight", "channel_weights")
 
 
 @dataclass
@@ -85,6 +89,8 @@ class TrainConfig:
         lr: peak learning rate (one-cycle).
         weight_decay: AdamW weight decay.
         pos_weight: extra weight of pixels on the turbine (see the module docstring).
+        channel_weights: loss weight of each of the 7 channels, in the order of
+            :data:`turbinefit.heatmaps.CHANNEL_NAMES` (see the module docstring).
         seed: seed of the renders and of the training order.
         threads: PyTorch threads.
         workers: processes rendering the dataset (default: all cores).
@@ -108,6 +114,7 @@ class TrainConfig:
     lr: float = 2e-3
     weight_decay: float = 1e-4
     pos_weight: float = 2.0
+    channel_weights: tuple[float, ...] = (1.0,) * NUM_CHANNELS
     seed: int = 0
     threads: int = 1
     workers: int | None = None
@@ -130,6 +137,11 @@ class TrainConfig:
             raise InputError(f"must be >= 0, got {self.pos_weight}", field="pos_weight")
         if self.input_scale not in (1, 2):
             raise InputError(f"must be 1 or 2, got {self.input_scale}", field="input_scale")
+        cw = self.channel_weights
+        if len(cw) != NUM_CHANNELS or not all(w >= 0 and math.isfinite(w) for w in cw) \
+                or not any(w > 0 for w in cw):
+            raise InputError(f"must be {NUM_CHANNELS} weights >= 0, not all 0, got "
+                             f"{','.join(str(w) for w in cw)}", field="channel_weights")
         if (self.labels is None) != (self.images_dir is None):
             raise InputError("--labels and --images-dir go together", field="labels")
 
@@ -175,9 +187,12 @@ def forward(net: HeatmapNet, x: torch.Tensor) -> torch.Tensor:
     return net(x.contiguous(memory_format=torch.channels_last))[..., :h // s, :w // s]
 
 
-def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float) -> torch.Tensor:
-    """Target-weighted binary cross-entropy (see the module docstring)."""
+def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float,
+                 channel_weights: tuple[float, ...] | None = None) -> torch.Tensor:
+    """Target- and channel-weighted binary cross-entropy (see the module docstring)."""
     w = 1.0 + pos_weight * target
+    if channel_weights is not None:
+        w = w * torch.tensor(channel_weights, dtype=w.dtype).view(1, -1, 1, 1)
     return (F.binary_cross_entropy_with_logits(logits, target, reduction="none") * w).mean()
 
 
@@ -404,7 +419,8 @@ def train(cfg: TrainConfig, progress: bool = True,
         except Exception as e:
             raise InputError(f"cannot read checkpoint: {e}", path=ckpt_path) from None
         assert resume is not None
-        old = resume["config"]
+        # a field a checkpoint predates had its default then
+        old = {**_config_dict(TrainConfig(out_dir=out)), **resume["config"]}
         for k in _RESUME_KEYS:
             if str(old.get(k)) != str(_config_dict(cfg).get(k)):
                 raise InputError(f"checkpoint was trained with {k}={old.get(k)}, not "
@@ -461,7 +477,7 @@ def train(cfg: TrainConfig, progress: bool = True,
                    unit="step", disable=not progress, leave=False)
         for x, y in bar:
             logits = forward(net, _jitter(x))
-            loss = heatmap_loss(logits, y, cfg.pos_weight)
+            loss = heatmap_loss(logits, y, cfg.pos_weight, cfg.channel_weights)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
