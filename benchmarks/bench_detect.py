@@ -3,12 +3,13 @@
 * **Held-out renders** at the model's input size (320 x 240 photos, 160 x 120 heat-maps):
   ``--heldout`` samples of :mod:`turbinefit.sim.dataset` with a seed never used in
   training, run through the model with onnxruntime; metrics of
-  :mod:`turbinefit.eval.detection` at the model's calibrated threshold, twice: in pixels of
+  :mod:`turbinefit.eval.detection` at the model's calibrated threshold: hub / tower-top /
+  base median error, blade-tip recall and precision within 5 px, IoU of the line
+  channels, false peaks of point channels whose point is out of frame, and the signed
+  biases of blade tips and tower top that a fit adds up. Distances twice: in pixels of
   the photos the model reads (the issue's yardstick: 2 px, 5 px) and in pixels of the
-  heat-map grid (half as many for a model of output scale 2; the figures of models that
-  read 160 x 120 photos) (hub / tower-top / base median error, blade-tip recall and precision within
-  5 px, IoU of the line channels, false peaks of point channels whose point is out of
-  frame, and the signed biases of blade tips and tower top that a fit adds up).
+  heat-map grid (half as many for a model of output scale 2; the unit of models that read
+  160 x 120 photos).
 * **Inference speed** at 320 x 240: :meth:`HeatmapDetector.detect` (resize to the input
   size, the net, resize of the 7 maps back to 320 x 240) on rendered photos, all cores.
 * **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),

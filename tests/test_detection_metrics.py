@@ -13,6 +13,19 @@ def _maps(uv: np.ndarray, lab: np.ndarray) -> np.ndarray:
     return render_keypoint_heatmaps(60, 80, [uv], [lab], sigma_px=1.5)
 
 
+#: An upright turbine's six projected points (base, tower top, hub, three tips) [px].
+_TURBINE_UV = np.array([[40, 55], [40, 15], [44, 15], [44, 3], [34, 21], [54, 21]], float)
+
+
+def _tips_inboard(uv: np.ndarray, px: float) -> np.ndarray:
+    """``uv`` with the three tips moved ``px`` towards the hub."""
+    moved = uv.copy()
+    for i in (3, 4, 5):
+        d = uv[2] - uv[i]
+        moved[i] += px * d / np.hypot(*d)
+    return moved
+
+
 def test_peak_is_sub_pixel() -> None:
     uv = np.array([[20.3, 30.6]] * 6)
     m = _maps(uv, np.array([True] + [False] * 5))
@@ -44,13 +57,10 @@ def test_counts() -> None:
 
 def test_biases_are_signed_along_the_blade_and_the_tower() -> None:
     """Tips drawn 1 px inboard and the tower top 0.5 px towards the base give -1 and +0.5."""
-    uv = np.array([[40, 55], [40, 15], [44, 15], [44, 3], [34, 21], [54, 21]], float)
+    uv = _TURBINE_UV
     vis = np.ones(6, bool)
     target = _maps(uv, vis)
-    moved = uv.copy()
-    for i in (3, 4, 5):
-        d = uv[2] - uv[i]
-        moved[i] += d / np.hypot(*d)
+    moved = _tips_inboard(uv, 1.0)
     moved[1, 1] += 0.5
     pred = _maps(moved, vis)
     st = DetectionStats(threshold=0.5)
@@ -71,13 +81,10 @@ def test_biases_are_nan_without_matches() -> None:
 def test_px_scale_reports_distances_in_input_pixels() -> None:
     """Maps 3 px (grid) off: at px_scale 2 errors and biases double, and the 5 px match
     radius is in input pixels, so tips 6 input px away no longer match."""
-    uv = np.array([[40, 55], [40, 15], [44, 15], [44, 3], [34, 21], [54, 21]], float)
+    uv = _TURBINE_UV
     vis = np.ones(6, bool)
     target = _maps(uv, vis)
-    moved = uv.copy()
-    for i in (3, 4, 5):
-        d = uv[2] - uv[i]
-        moved[i] += 3.0 * d / np.hypot(*d)
+    moved = _tips_inboard(uv, 3.0)
     moved[0, 0] += 1.0
     pred = _maps(moved, vis)
     grid, photo = DetectionStats(threshold=0.5), DetectionStats(threshold=0.5, px_scale=2.0)
