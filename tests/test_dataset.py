@@ -90,6 +90,11 @@ def test_build_resumes_and_refuses_another_spec(tmp_path: Path) -> None:
     d2 = build_dataset(tmp_path / "d", spec, workers=1, progress=False)
     assert d2.complete
     np.testing.assert_array_equal(np.array(d2.images), images)
+    # points in sight are visible ones, as rendered
+    for i in range(4):
+        s = render_sample(spec, i)
+        np.testing.assert_array_equal(d2.in_sight[i], s.in_sight)
+        assert not (s.in_sight & ~s.visible).any()
     with pytest.raises(InputError, match="another spec"):
         build_dataset(tmp_path / "d", DatasetSpec(5, seed=1), workers=1, progress=False)
     with pytest.raises(InputError, match="another spec"):

@@ -95,3 +95,50 @@ def test_px_scale_reports_distances_in_input_pixels() -> None:
     assert p["base_median_px"] == pytest.approx(2.0, abs=0.1)
     assert g["tips_recall"] == 1.0 and g["tip_bias_px"] == pytest.approx(-3.0, abs=0.1)
     assert p["tips_recall"] == 0.0 and p["tips_precision"] == 0.0
+
+
+def test_recall_in_sight_leaves_hidden_tips_out() -> None:
+    """Two of three tips found; the missed one is hidden (behind the tower, say): recall
+    2/3 over the tips in the frame, 1 over the tips in sight; without in_sight, NaN."""
+    uv = _TURBINE_UV
+    vis = np.ones(6, bool)
+    target = _maps(uv, vis)
+    pred = _maps(uv, np.array([True] * 5 + [False]))
+    in_sight = np.array([True] * 5 + [False])
+    st, plain = DetectionStats(threshold=0.5), DetectionStats(threshold=0.5)
+    st.add(pred, target, uv, vis, in_sight)
+    plain.add(pred, target, uv, vis)
+    m, p = st.summary(), plain.summary()
+    assert m["tips_recall"] == p["tips_recall"] == pytest.approx(2 / 3)
+    assert m["tips_recall_in_sight"] == 1.0
+    assert m["tips_in_sight"] == pytest.approx(2 / 3)
+    assert np.isnan(p["tips_recall_in_sight"]) and np.isnan(p["tips_in_sight"])
+    # a found tip that is hidden counts as found over the frame, not in sight
+    st2 = DetectionStats(threshold=0.5)
+    st2.add(target, target, uv, vis, np.array([True] * 4 + [False, True]))
+    assert st2.summary()["tips_recall_in_sight"] == 1.0
+
+
+def test_tips_are_matched_at_sub_pixel_positions() -> None:
+    """Tips drawn half a pixel off the grid match a 0.6 px radius only once refined."""
+    uv = _TURBINE_UV + np.array([0.5, 0.0])
+    vis = np.ones(6, bool)
+    maps = _maps(uv, vis)
+    st = DetectionStats(threshold=0.5, match_px=0.2)
+    st.add(maps, maps, uv, vis)
+    assert st.summary()["tips_recall"] == 1.0
+
+
+def test_recall_split_by_apparent_blade_length() -> None:
+    """Blades 12 px long: short at 40 px (grid), long in pixels of a 4x photo (48 px)."""
+    uv = _TURBINE_UV
+    vis = np.ones(6, bool)
+    target = _maps(uv, vis)
+    pred = _maps(uv, np.array([True] * 4 + [False] * 2))  # one tip of three found
+    grid, photo = (DetectionStats(threshold=0.5, match_px=20.0, px_scale=k) for k in (1.0, 4.0))
+    for st in (grid, photo):
+        st.add(pred, target, uv, vis)
+    g, p = grid.summary(), photo.summary()
+    assert g["tips_short"] == 1.0 and g["tips_recall_short"] == pytest.approx(1 / 3)
+    assert np.isnan(g["tips_recall_long"])
+    assert p["tips_short"] == 0.0 and p["tips_recall_long"] == pytest.approx(1 / 3)

@@ -15,8 +15,10 @@ from turbinefit.sim.images import (
     NO_EFFECTS,
     Scene,
     _look,
+    points_in_sight,
     render_flight_images,
     render_image,
+    render_image_and_depth,
     sample_scene,
     sample_training_view,
 )
@@ -185,3 +187,27 @@ def test_sample_training_view() -> None:
     assert (dists_a > 150.0).sum() >= 20
     assert np.all(np.abs(np.degrees(pitches)) <= 60.0 + 1e-6)
     assert np.all(np.abs(np.degrees(rolls)) <= 5.0 + 1e-6)
+
+
+def test_depth_and_points_in_sight(clear_scene: Scene) -> None:
+    """The depth buffer holds the distance to the turbine's surface (the tower seen across
+    its axis: distance minus its radius), inf on the sky; a point just behind the tower is
+    not in sight, the same point in front of it is."""
+    theta = TURBINE.to_vector()
+    eye = np.array([-60.0, 80.0, 40.0])  # beside the tower, level with its middle
+    T = _look_at(eye, np.array([0.0, 0.0, 40.0]))
+    img0 = render_image(CAMERA, T, theta, clear_scene, np.random.default_rng(0))
+    img, depth = render_image_and_depth(CAMERA, T, theta, clear_scene, np.random.default_rng(0))
+    np.testing.assert_array_equal(img, img0)
+    assert depth.shape == (CAMERA.height, CAMERA.width) and depth.dtype == np.float32
+    axis = np.array([0.0, 0.0, 40.0])
+    dist = float(np.linalg.norm(axis - eye))
+    c = round(CAMERA.cy), round(CAMERA.cx)
+    assert dist - 4.0 < depth[c] < dist - 1.0  # a tower of 2-4 m radius there
+    assert np.isinf(depth[2, 2])  # sky (camera looks level: the top row is sky)
+    toward = (eye - axis) / dist
+    behind, front = axis - 8.0 * toward, axis + 8.0 * toward
+    aside = axis + 40.0 * np.cross(toward, [0.0, 0.0, 1.0])
+    out = axis + np.array([0.0, 0.0, 500.0])  # far above the image
+    seen = points_in_sight(CAMERA, T, np.stack([behind, front, aside, out]), depth)
+    assert seen.tolist() == [False, True, True, False]

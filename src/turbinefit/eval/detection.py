@@ -15,9 +15,15 @@ model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
 * **Blade tips** (one channel, up to three tips): local maxima above ``tip_threshold``
   (default ``threshold``) in a ``nms_px`` x ``nms_px`` window (7 px: +-2 sigma of the
   1.5 px targets, so that one tip's blob, flattened or ridged by the net, gives one
-  detection) are detections; a greedy one-to-one match to
+  detection), refined to sub-pixel as the points are, are detections; a greedy
+  one-to-one match to
   visible tips within ``match_px`` gives recall (matched tips / visible tips) and
-  precision (matched detections / detections).
+  precision (matched detections / detections). Given which points are *in sight* (not
+  hidden behind the tower or a nearer blade; :func:`turbinefit.sim.images.points_in_sight`
+  for renders), recall is also reported over the tips in sight: a tip hidden behind a
+  blade is a guess from the rest of the turbine, not a detection. Recall is also split by
+  the blade's apparent length (hub to tip, in the image): under ``short_blade_px`` (far
+  turbines, where tips are thinnest) and over.
 * **Lines** (tower, nacelle, blades): intersection over union of the regions above 0.5 in
   prediction and target, pooled over all images (sum of intersections / sum of unions).
 * **Biases** (what a fit over many keyframes adds up, where per-image medians hide it):
@@ -83,6 +89,7 @@ class DetectionStats:
     tip_threshold: float | None = None
     nms_px: int = 7
     px_scale: float = 1.0
+    short_blade_px: float = 40.0
     point_errors: list[list[float]] = field(default_factory=lambda: [[], [], []])
     point_visible: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
     point_detected: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
@@ -92,6 +99,10 @@ class DetectionStats:
     tips_matched: int = 0
     tips_detections: int = 0
     tips_true_detections: int = 0
+    tips_in_sight: int = 0
+    tips_in_sight_matched: int = 0
+    tips_short: int = 0
+    tips_short_matched: int = 0
     inter: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     union: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     tip_along: list[float] = field(default_factory=list)
@@ -99,8 +110,10 @@ class DetectionStats:
     images: int = 0
 
     def add(self, pred: NDArray[np.floating], target: NDArray[np.floating],
-            points: NDArray[np.floating], visible: NDArray[np.bool_]) -> None:
-        """Add one image (see the module docstring for the arguments)."""
+            points: NDArray[np.floating], visible: NDArray[np.bool_],
+            in_sight: NDArray[np.bool_] | None = None) -> None:
+        """Add one image (see the module docstring for the arguments; ``in_sight`` (6,),
+        a subset of ``visible``, is optional)."""
         self.images += 1
         px = self.px_scale
         for c in range(3):
@@ -118,8 +131,15 @@ class DetectionStats:
                 self.point_hidden[c] += 1
                 self.point_false[c] += int(val > self.threshold)
         tips = points[3:6][visible[3:6]]
+        tip_seen = (np.zeros(len(tips), dtype=bool) if in_sight is None
+                    else np.asarray(in_sight[3:6], dtype=bool)[visible[3:6]])
+        self.tips_in_sight += int(tip_seen.sum())
+        tip_short = px * np.hypot(*(tips - points[2]).T) < self.short_blade_px
+        self.tips_short += int(tip_short.sum())
         det = local_maxima(pred[3], self.threshold if self.tip_threshold is None
                            else self.tip_threshold, self.nms_px)
+        # sub-pixel, as the points: a blob between two grid pixels is matched where it is
+        det = np.array([refine(pred[3], int(v), int(u))[:2] for u, v in det]).reshape(-1, 2)
         self.tips_visible += len(tips)
         self.tips_detections += len(det)
         if len(tips) and len(det):
@@ -136,9 +156,11 @@ class DetectionStats:
                 used_det.add(a)
                 used_tip.add(b)
                 if visible[2]:
-                    u, v, _ = refine(pred[3], int(det[a, 1]), int(det[a, 0]))
-                    self.tip_along.append(px * _along(u, v, tips[b], tips[b] - points[2]))
+                    self.tip_along.append(
+                        px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
             self.tips_matched += len(used_tip)
+            self.tips_in_sight_matched += int(sum(tip_seen[b] for b in used_tip))
+            self.tips_short_matched += int(sum(tip_short[b] for b in used_tip))
             self.tips_true_detections += len(used_det)
         for k, c in enumerate((4, 5, 6)):
             p, t = pred[c] > 0.5, target[c] > 0.5
@@ -147,8 +169,11 @@ class DetectionStats:
 
     def summary(self) -> dict[str, float]:
         """Figures: ``<point>_median_px``, ``<point>_p90_px``, ``<point>_detected``,
-        ``<point>_false_peak``, ``tips_recall``, ``tips_precision``, ``iou_<line>``,
-        ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined)."""
+        ``<point>_false_peak``, ``tips_recall``, ``tips_precision``,
+        ``tips_recall_in_sight``, ``tips_in_sight`` (share of the visible tips in sight),
+        ``tips_recall_short``, ``tips_recall_long`` (blades under / over
+        ``short_blade_px``), ``tips_short`` (share of the visible tips on short blades),
+        ``iou_<line>``, ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined)."""
         out: dict[str, float] = {"images": float(self.images)}
         for c, name in enumerate(POINT_NAMES3):
             e = self.point_errors[c]
@@ -158,6 +183,13 @@ class DetectionStats:
             out[f"{name}_false_peak"] = _ratio(self.point_false[c], self.point_hidden[c])
         out["tips_recall"] = _ratio(self.tips_matched, self.tips_visible)
         out["tips_precision"] = _ratio(self.tips_true_detections, self.tips_detections)
+        out["tips_recall_in_sight"] = _ratio(self.tips_in_sight_matched, self.tips_in_sight)
+        out["tips_in_sight"] = (_ratio(self.tips_in_sight, self.tips_visible)
+                                if self.tips_in_sight else float("nan"))
+        out["tips_recall_short"] = _ratio(self.tips_short_matched, self.tips_short)
+        out["tips_recall_long"] = _ratio(self.tips_matched - self.tips_short_matched,
+                                         self.tips_visible - self.tips_short)
+        out["tips_short"] = _ratio(self.tips_short, self.tips_visible)
         for k, name in enumerate(LINE_NAMES3):
             out[f"iou_{name}"] = _ratio(self.inter[k], self.union[k])
         out["tip_bias_px"] = float(np.mean(self.tip_along)) if self.tip_along else float("nan")

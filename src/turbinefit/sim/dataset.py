@@ -22,6 +22,9 @@ interrupted build resumes where it stopped:
 * ``targets.npy``  uint8 (N, 7, H, W), heat-map values x 255,
 * ``points.npy``   float32 (N, 6, 2) projected model points [px] (garbage where not visible),
 * ``visible.npy``  bool (N, 6): point in front of the camera and inside the image,
+* ``in_sight.npy`` bool (N, 6): visible and not hidden behind a turbine surface (a blade
+  tip behind the tower or a nearer blade is visible but not in sight; see
+  :func:`turbinefit.sim.images.points_in_sight`),
 * ``done.npy``     bool (N,): sample written,
 * ``spec.json``    the :class:`DatasetSpec` (a folder of another spec is never reused).
 
@@ -50,7 +53,12 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.io.atomic import StrPath, write_text_atomic
 from turbinefit.io.images import resize_image
-from turbinefit.sim.images import render_image, sample_scene, sample_training_view
+from turbinefit.sim.images import (
+    points_in_sight,
+    render_image_and_depth,
+    sample_scene,
+    sample_training_view,
+)
 from turbinefit.sim.render import RenderConfig, render_heatmaps
 from turbinefit.sim.trajectory import plan_inspection
 from turbinefit.sim.turbines import sample_turbine
@@ -64,12 +72,13 @@ IMAGE_SCALE = 2
 TARGET_SIGMA_PX = 1.5
 #: Photos are rendered at this multiple of the model's input size, then resized.
 RENDER_SCALE = 2
-#: Bumped whenever the renderer or the sampling changes what sample i looks like.
-DATA_VERSION = 2
+#: Bumped whenever the renderer or the sampling changes what sample i looks like, or the
+#: arrays a dataset folder holds change (3: in_sight.npy).
+DATA_VERSION = 3
 #: Fraction of samples taken from planned inspection flights (the rest: varied views).
 FLIGHT_FRACTION = 0.3
 
-_ARRAYS = ("images", "targets", "points", "visible", "done")
+_ARRAYS = ("images", "targets", "points", "visible", "in_sight", "done")
 
 
 @dataclass(frozen=True)
@@ -103,6 +112,7 @@ class Sample:
     target: NDArray[np.float32]
     points: NDArray[np.float64]
     visible: NDArray[np.bool_]
+    in_sight: NDArray[np.bool_]
 
 
 def _random_geometry(rng: np.random.Generator) -> TurbineGeometry:
@@ -144,14 +154,15 @@ def render_sample(spec: DatasetSpec, index: int) -> Sample:
     else:
         pose = sample_training_view(rng, turbine, big, geometry)
     scene = sample_scene(rng, turbine)
-    photo = render_image(big, pose, turbine.to_vector(), scene, rng, geometry)
+    photo, depth = render_image_and_depth(big, pose, turbine.to_vector(), scene, rng, geometry)
     image = resize_image(photo, spec.width * spec.image_scale, spec.height * spec.image_scale)
     target = render_heatmaps(small, pose, turbine.to_vector(), geometry,
                              RenderConfig(sigma_px=spec.sigma_px))
     world_p, _ = model_points(turbine.to_vector(), geometry)
     uv, ok, _ = small.project_unbounded(pose.inverse().apply(world_p))
     visible = ok & small.in_image(uv)
-    return Sample(image, target, np.where(np.isfinite(uv), uv, 0.0), visible)
+    in_sight = visible & points_in_sight(big, pose, world_p, depth)
+    return Sample(image, target, np.where(np.isfinite(uv), uv, 0.0), visible, in_sight)
 
 
 class Dataset:
@@ -165,6 +176,7 @@ class Dataset:
         self.targets: NDArray[np.uint8] = arrays["targets"]
         self.points: NDArray[np.float32] = arrays["points"]
         self.visible: NDArray[np.bool_] = arrays["visible"]
+        self.in_sight: NDArray[np.bool_] = arrays["in_sight"]
         self.done: NDArray[np.bool_] = arrays["done"]
 
     def __len__(self) -> int:
@@ -192,6 +204,7 @@ def _create(folder: Path, spec: DatasetSpec) -> None:
     shapes: dict[str, tuple[tuple[int, ...], type]] = {
         "images": ((n, s * h, s * w, 3), np.uint8), "targets": ((n, NUM_CHANNELS, h, w), np.uint8),
         "points": ((n, 6, 2), np.float32), "visible": ((n, 6), np.bool_),
+        "in_sight": ((n, 6), np.bool_),
         "done": ((n,), np.bool_),
     }
     folder.mkdir(parents=True, exist_ok=True)
@@ -216,6 +229,7 @@ def _fill(args: tuple[str, list[int]]) -> list[int]:
         arrays["targets"][i] = np.rint(np.clip(s.target, 0.0, 1.0) * 255.0).astype(np.uint8)
         arrays["points"][i] = s.points
         arrays["visible"][i] = s.visible
+        arrays["in_sight"][i] = s.in_sight
     for a in arrays.values():
         a.flush()
     return indices

@@ -1713,6 +1713,20 @@ def render_image(
             noise, JPEG quality).
         geometry: shaft tilt, blade cone and hub offset of every turbine of the scene.
     """
+    return render_image_and_depth(camera, world_T_cam, turbine, scene, rng, geometry)[0]
+
+
+def render_image_and_depth(
+    camera: PinholeCamera,
+    world_T_cam: SE3,
+    turbine: ArrayLike,
+    scene: Scene,
+    rng: np.random.Generator,
+    geometry: TurbineGeometry = PAPER_GEOMETRY,
+) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """:func:`render_image` (same arguments, same image) and its depth: (H, W) float32,
+    the distance [m] along each pixel's ray to the nearest turbine surface (of any turbine
+    of the scene) covering most of the pixel, inf where none does (sky, terrain)."""
     if world_T_cam.batch_shape != ():
         raise ValueError(f"expected one pose, got batch {world_T_cam.batch_shape}")
     fr = _Frame(camera, world_T_cam, scene)
@@ -1726,7 +1740,27 @@ def render_image(
         painter.turbine(tb)
     img = fr.C.reshape(3, camera.height, camera.width)
     np.nan_to_num(img, copy=False, nan=0.5, posinf=1.0, neginf=0.0)
-    return _apply_effects(img, fr.rn, scene.effects, rng)
+    depth = fr.Z.reshape(camera.height, camera.width).copy()
+    return _apply_effects(img, fr.rn, scene.effects, rng), depth
+
+
+def points_in_sight(camera: PinholeCamera, world_T_cam: SE3, world_p: ArrayLike,
+                    depth: NDArray[np.floating], margin_m: float = 3.0,
+                    margin_rel: float = 0.02) -> NDArray[np.bool_]:
+    """Which world points (M, 3) the camera sees: in front of it, inside the image and
+    not behind a turbine surface of ``depth`` (:func:`render_image_and_depth`, same
+    camera) nearer than the point by more than ``margin_m`` + ``margin_rel`` x its
+    distance at the point's pixel (the margin lets a point inside its own part, e.g. a
+    blade tip on the blade's axis or the hub inside the spinner, count as seen)."""
+    p = np.asarray(world_p, dtype=np.float64).reshape(-1, 3)
+    uv, ok, _ = camera.project_unbounded(world_T_cam.inverse().apply(p))
+    seen = ok & camera.in_image(uv)
+    dist = np.linalg.norm(p - world_T_cam.translation, axis=-1)
+    for k in np.flatnonzero(seen):
+        j = min(max(round(float(uv[k, 0])), 0), camera.width - 1)
+        i = min(max(round(float(uv[k, 1])), 0), camera.height - 1)
+        seen[k] = float(depth[i, j]) >= dist[k] - margin_m - margin_rel * dist[k]
+    return seen
 
 
 def render_flight_images(
