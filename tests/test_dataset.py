@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +11,13 @@ import pytest
 
 from turbinefit.errors import InputError
 from turbinefit.eval.detection import peak
-from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample
+from turbinefit.sim.dataset import (
+    DATA_VERSION,
+    DatasetSpec,
+    build_dataset,
+    check_dataset_folder,
+    render_sample,
+)
 from turbinefit.sim.render import render_keypoint_heatmaps
 
 
@@ -100,3 +108,17 @@ def test_build_resumes_and_refuses_another_spec(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="another spec"):
         build_dataset(tmp_path / "d", DatasetSpec(4, seed=1, image_scale=1), workers=1,
                       progress=False)
+
+
+def test_a_folder_of_an_older_data_version_is_refused_by_name(tmp_path: Path) -> None:
+    spec = DatasetSpec(4, seed=1)
+    check_dataset_folder(tmp_path / "absent", spec)  # nothing there: fine
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "spec.json").write_text(json.dumps(asdict(replace(spec, version=DATA_VERSION - 1))))
+    with pytest.raises(InputError, match=f"data version {DATA_VERSION - 1}; this turbinefit "
+                                         f"renders version {DATA_VERSION}"):
+        check_dataset_folder(old, spec)
+    with pytest.raises(InputError, match="data version"):
+        build_dataset(old, spec, workers=1, progress=False)
+    assert sorted(p.name for p in old.iterdir()) == ["spec.json"]  # nothing added

@@ -285,3 +285,22 @@ def test_train_bad_labels(tmp_path: Path, bad: str, capsys: pytest.CaptureFixtur
     assert err.startswith("turbinefit: error: ") and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o" / "model.onnx").exists()
     assert read_image(tmp_path / "a.png").shape == (120, 160, 3)
+
+
+def test_train_refuses_an_old_dataset_before_writing(tmp_path: Path) -> None:
+    """A --data folder rendered by an older data version: one clear error, no --out."""
+    from dataclasses import asdict, replace
+
+    from turbinefit.sim.dataset import DATA_VERSION
+    from turbinefit.train.trainer import train
+
+    old = tmp_path / "data" / "train-n4-s0-x2"
+    old.mkdir(parents=True)
+    spec = replace(DatasetSpec(4, 0, image_scale=2), version=DATA_VERSION - 1)
+    (old / "spec.json").write_text(json.dumps(asdict(spec)))
+    cfg = TrainConfig(out_dir=tmp_path / "out", data_dir=tmp_path / "data", n_images=4,
+                      val_images=2, max_steps=1)
+    with pytest.raises(InputError, match="data version"):
+        train(cfg, progress=False, log=lambda _: None)
+    assert not (tmp_path / "out").exists()
+    assert not (tmp_path / "data" / "val-n2-s0-x2").exists()

@@ -39,7 +39,7 @@ import json
 import math
 import os
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
 
@@ -240,6 +240,23 @@ def _chunks(indices: list[int], size: int) -> Iterator[list[int]]:
         yield indices[k:k + size]
 
 
+def check_dataset_folder(folder: StrPath, spec: DatasetSpec) -> None:
+    """Raise :class:`InputError` if ``folder`` holds a dataset of another spec (one
+    rendered by an older data version says so); an absent folder is fine."""
+    root = Path(folder)
+    if not (root / "spec.json").exists():
+        return
+    have = read_spec(root)
+    if have == spec:
+        return
+    if replace(have, version=spec.version) == spec:
+        why = (f"was rendered by data version {have.version}; this turbinefit renders "
+               f"version {spec.version}")
+    else:
+        why = f"holds a dataset of another spec ({have})"
+    raise InputError(f"{why}; use another folder or delete it", path=root)
+
+
 def build_dataset(folder: StrPath, spec: DatasetSpec, workers: int | None = None,
                   progress: bool = True) -> Dataset:
     """Render ``spec`` into ``folder`` (created), or finish / reuse what is there.
@@ -251,12 +268,8 @@ def build_dataset(folder: StrPath, spec: DatasetSpec, workers: int | None = None
         InputError: if ``folder`` holds a dataset of another spec.
     """
     root = Path(folder)
-    if (root / "spec.json").exists():
-        have = read_spec(root)
-        if have != spec:
-            raise InputError(f"holds a dataset of another spec ({have}); use another folder "
-                             f"or delete it", path=root)
-    else:
+    check_dataset_folder(root, spec)
+    if not (root / "spec.json").exists():
         _create(root, spec)
     done = np.load(root / "done.npy", mmap_mode="r+")
     todo = [int(i) for i in np.flatnonzero(~done)]

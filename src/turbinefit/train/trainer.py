@@ -65,6 +65,7 @@ from turbinefit.sim.dataset import (
     Dataset,
     DatasetSpec,
     build_dataset,
+    check_dataset_folder,
 )
 from turbinefit.train.net import STRIDE, HeatmapNet, lift_to_input_scale_2, num_parameters
 
@@ -427,17 +428,19 @@ def train(cfg: TrainConfig, progress: bool = True,
                                  f"{_config_dict(cfg).get(k)}; use another --out to start anew",
                                  path=ckpt_path)
 
-    out.mkdir(parents=True, exist_ok=True)
     data_dir = cfg.data_dir or (out / "data")
-    rendered = build_dataset(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}",
-                             DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale),
-                             cfg.workers, progress)
+    train_spec = DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale)
+    train_dir = data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}"
+    val_spec = DatasetSpec(max(cfg.val_images, 1), cfg.seed + VAL_SEED_OFFSET, image_scale=scale)
+    val_dir = data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}"
+    check_dataset_folder(train_dir, train_spec)
+    if cfg.val_images:
+        check_dataset_folder(val_dir, val_spec)
+    out.mkdir(parents=True, exist_ok=True)
+    rendered = build_dataset(train_dir, train_spec, cfg.workers, progress)
     val: Dataset | None = None
     if cfg.val_images:
-        val = build_dataset(data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}",
-                            DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET,
-                                        image_scale=scale),
-                            cfg.workers, progress)
+        val = build_dataset(val_dir, val_spec, cfg.workers, progress)
     parts: list[_Arrays] = [_Arrays(rendered.images, rendered.targets, augment=True)]
     if labelled is not None:
         parts.append(_Arrays(labelled[0], labelled[1], augment=True))
