@@ -23,7 +23,8 @@ model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
   for renders), recall is also reported over the tips in sight: a tip hidden behind a
   blade is a guess from the rest of the turbine, not a detection. Recall is also split by
   the blade's apparent length (hub to tip, in the image): under ``short_blade_px`` (far
-  turbines, where tips are thinnest) and over.
+  turbines, blades foreshortened or seen from above: where tips are hardest to see) and
+  over.
 * **Lines** (tower, nacelle, blades): intersection over union of the regions above 0.5 in
   prediction and target, pooled over all images (sum of intersections / sum of unions).
 * **Biases** (what a fit over many keyframes adds up, where per-image medians hide it):
