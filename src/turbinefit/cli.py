@@ -56,6 +56,13 @@ def _float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
 
 
+def _positive_float(text: str) -> float:
+    v = _float(text)
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return v
+
+
 def _channel_weights(text: str) -> tuple[float, ...]:
     """Seven comma-separated non-negative numbers (one loss weight per heat-map channel)."""
     try:
@@ -253,6 +260,31 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds only detect outputs")
     d.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    # ---- evaluate ---------------------------------------------------------------
+    v = sub.add_parser(
+        "evaluate", help="detection metrics of the CNN on labelled photos (COCO keypoints)",
+        description="Run the heat-map CNN on photos labelled with COCO keypoints (base, "
+        "tower_top, hub, tip_1..3, as CVAT and Label Studio export them; any number of "
+        "turbines per photo) and print, per point type, recall, precision and median error "
+        "of the detections matched within --match-px, and the IoU of the line channels. "
+        "Distances are in pixels of the photos resized to the model's input width (320 px "
+        "for the shipped model), as the held-out benchmark measures them. Use it to see how "
+        "the shipped model (or a fine-tuned one) does on your own photos.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    v.add_argument("--labels", type=Path, required=True, help="COCO keypoint JSON file")
+    v.add_argument("--images-dir", type=Path, required=True,
+                   help="folder the COCO file_name entries are relative to")
+    v.add_argument("--model", type=Path, default=None,
+                   help="ONNX model (default: the shipped model)")
+    v.add_argument("--match-px", type=_positive_float, default=5.0,
+                   help="a detection within this distance of a labelled point matches it")
+    v.add_argument("--out", type=Path, default=None, metavar="REPORT.json",
+                   help="also write the metrics as JSON (atomically)")
+    v.add_argument("--overwrite", action="store_true", help="replace an existing REPORT.json")
+    v.add_argument("--threads", type=_positive_int, default=None,
+                   help="inference threads (default: all cores)")
+    v.add_argument("--quiet", action="store_true", help="no progress bar")
 
     # ---- train ------------------------------------------------------------------
     t = sub.add_parser(
@@ -687,6 +719,36 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from turbinefit.pipeline import evaluate_labels
+
+    rep = evaluate_labels(args.labels, args.images_dir, args.model, out=args.out,
+                          overwrite=args.overwrite, match_px=args.match_px,
+                          progress=not args.quiet, threads=args.threads)
+    m = rep.summary
+    print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
+          f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}); distances in "
+          f"pixels of the photos resized to {rep.input_width} px wide, matches within "
+          f"{args.match_px:g} px")
+
+    def pct(x: float) -> str:
+        return "-" if math.isnan(x) else f"{x:.1%}"
+
+    for name in ("base", "tower_top", "hub", "tips"):
+        med = m[f"{name}_median_px"]
+        print(f"  {name:10s} labelled {int(m[name + '_labelled']):5d}  recall "
+              f"{pct(m[name + '_recall'])} (labelled visible: {pct(m[name + '_recall_in_sight'])}), "
+              f"precision {pct(m[name + '_precision'])}, median error "
+              f"{'-' if math.isnan(med) else f'{med:.2f} px'}")
+    print("  IoU        " + ", ".join(
+        f"{k} {'-' if math.isnan(m['iou_' + k]) else format(m['iou_' + k], '.2f')} "
+        f"({int(m['iou_' + k + '_photos'])} photos)" for k in ("tower", "nacelle", "blade"))
+        + " (over the photos with both ends of each such line labelled)")
+    if rep.out is not None:
+        print(f"wrote {rep.out}")
+    return 0
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from turbinefit.errors import InputError
 
@@ -729,6 +791,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_detect(args)
         if args.command == "train":
             return _cmd_train(args)
+        if args.command == "evaluate":
+            return _cmd_evaluate(args)
     except TurbinefitError as exc:
         print(f"turbinefit: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

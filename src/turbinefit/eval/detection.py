@@ -81,6 +81,36 @@ def local_maxima(channel: NDArray[np.floating], threshold: float, size: int = 3
     return np.stack([jj, ii], axis=-1).astype(np.float64)
 
 
+def match_points(det: NDArray[np.floating], truth: NDArray[np.floating], max_d: float
+                 ) -> list[tuple[int, int, float]]:
+    """Greedy one-to-one matching, nearest pairs first, of detections (n, 2) to true
+    points (m, 2) within ``max_d``: (detection index, point index, distance) per pair."""
+    if len(det) == 0 or len(truth) == 0:
+        return []
+    d = np.hypot(det[:, None, 0] - truth[None, :, 0], det[:, None, 1] - truth[None, :, 1])
+    used_det: set[int] = set()
+    used_truth: set[int] = set()
+    pairs: list[tuple[int, int, float]] = []
+    for k in np.argsort(d, axis=None, kind="stable"):
+        a, b = (int(x) for x in np.unravel_index(int(k), d.shape))
+        if d[a, b] > max_d:
+            break
+        if a in used_det or b in used_truth:
+            continue
+        used_det.add(a)
+        used_truth.add(b)
+        pairs.append((a, b, float(d[a, b])))
+    return pairs
+
+
+def peaks(channel: NDArray[np.floating], threshold: float, nms_px: int = 7
+          ) -> NDArray[np.float64]:
+    """(n, 2) sub-pixel positions (u, v) of a channel's local maxima above ``threshold``
+    (``nms_px`` x ``nms_px`` non-maximum suppression)."""
+    det = local_maxima(channel, threshold, nms_px)
+    return np.array([refine(channel, int(v), int(u))[:2] for u, v in det]).reshape(-1, 2)
+
+
 @dataclass
 class DetectionStats:
     """Accumulates metrics over images; :meth:`summary` gives the figures."""
@@ -137,32 +167,20 @@ class DetectionStats:
         self.tips_in_sight += int(tip_seen.sum())
         tip_short = px * np.hypot(*(tips - points[2]).T) < self.short_blade_px
         self.tips_short += int(tip_short.sum())
-        det = local_maxima(pred[3], self.threshold if self.tip_threshold is None
-                           else self.tip_threshold, self.nms_px)
         # sub-pixel, as the points: a blob between two grid pixels is matched where it is
-        det = np.array([refine(pred[3], int(v), int(u))[:2] for u, v in det]).reshape(-1, 2)
+        det = peaks(pred[3], self.threshold if self.tip_threshold is None
+                    else self.tip_threshold, self.nms_px)
         self.tips_visible += len(tips)
         self.tips_detections += len(det)
-        if len(tips) and len(det):
-            d = px * np.hypot(det[:, None, 0] - tips[None, :, 0],
-                             det[:, None, 1] - tips[None, :, 1])
-            used_det: set[int] = set()
-            used_tip: set[int] = set()
-            for k in np.argsort(d, axis=None):
-                a, b = (int(x) for x in np.unravel_index(int(k), d.shape))
-                if d[a, b] > self.match_px:
-                    break
-                if a in used_det or b in used_tip:
-                    continue
-                used_det.add(a)
-                used_tip.add(b)
-                if visible[2]:
-                    self.tip_along.append(
-                        px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
-            self.tips_matched += len(used_tip)
-            self.tips_in_sight_matched += int(sum(tip_seen[b] for b in used_tip))
-            self.tips_short_matched += int(sum(tip_short[b] for b in used_tip))
-            self.tips_true_detections += len(used_det)
+        pairs = match_points(det, tips, self.match_px / px)
+        for a, b, _ in pairs:
+            if visible[2]:
+                self.tip_along.append(
+                    px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
+        self.tips_matched += len(pairs)
+        self.tips_true_detections += len(pairs)
+        self.tips_in_sight_matched += int(sum(tip_seen[b] for _, b, _ in pairs))
+        self.tips_short_matched += int(sum(tip_short[b] for _, b, _ in pairs))
         for k, c in enumerate((4, 5, 6)):
             p, t = pred[c] > 0.5, target[c] > 0.5
             self.inter[k] += float(np.count_nonzero(p & t))
@@ -220,3 +238,93 @@ def detection_metrics(preds: Iterable[NDArray[np.floating]], targets: Iterable[N
     for p, t, pt, vis in zip(preds, targets, points, visible, strict=True):
         stats.add(p, t, pt, vis)
     return stats.summary()
+
+
+#: Line channels of :class:`InstanceStats` and the keypoint rows their lines join.
+_LINE_ENDS = ((4, ((0, 1),)), (5, ((1, 2),)), (6, ((2, 3), (2, 4), (2, 5))))
+#: The point types of :class:`InstanceStats`: name, heat-map channel, keypoint rows.
+INSTANCE_POINTS = (("base", 0, (0,)), ("tower_top", 1, (1,)), ("hub", 2, (2,)),
+                   ("tips", 3, (3, 4, 5)))
+
+
+@dataclass
+class InstanceStats:
+    """Metrics of photos with any number of labelled turbines (real photos labelled as
+    in :mod:`turbinefit.io.coco`), where a channel's single maximum is not the answer.
+
+    Per point type (base, tower top, hub, tips): local maxima above the threshold, refined
+    to sub-pixel, are detections; a greedy one-to-one match to the labelled points
+    (visibility 1 or 2) within ``match_px`` gives recall, precision and the median error
+    of the matches; ``<name>_recall_in_sight`` counts only the points labelled visible (2).
+    Lines: IoU (> 0.5) against the targets drawn from the labels (a ridge between two
+    labelled ends), pooled over the photos where every turbine has both ends of every
+    line of that channel labelled: a line with an end out of frame has no target, so
+    its pixels would count as false. Distances are in pixels of an image ``px_scale``
+    times the heat-maps (see :class:`DetectionStats`).
+    """
+
+    threshold: float = 0.3
+    tip_threshold: float | None = None
+    match_px: float = 5.0
+    nms_px: int = 7
+    px_scale: float = 1.0
+    labelled: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    in_sight: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    matched: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    matched_in_sight: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    detections: NDArray[np.int64] = field(default_factory=lambda: np.zeros(4, np.int64))
+    errors: list[list[float]] = field(default_factory=lambda: [[], [], [], []])
+    inter: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    union: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    line_photos: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
+    photos: int = 0
+    turbines: int = 0
+
+    def add(self, pred: NDArray[np.floating], target: NDArray[np.floating],
+            uv: NDArray[np.floating], visibility: NDArray[np.integer]) -> None:
+        """One photo: predicted and target heat-maps (7, H, W), the labelled points
+        ``uv`` (K, 6, 2) [px of the heat-map grid] of its K turbines (K may be 0) and
+        their COCO ``visibility`` (K, 6) (0 not labelled, 1 occluded, 2 visible)."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 6, 2)
+        vis = np.asarray(visibility).reshape(-1, 6)
+        self.photos += 1
+        self.turbines += len(uv)
+        px = self.px_scale
+        for k, (_, ch, rows) in enumerate(INSTANCE_POINTS):
+            pts = uv[:, list(rows)].reshape(-1, 2)
+            v = vis[:, list(rows)].reshape(-1)
+            truth, seen = pts[v > 0], v[v > 0] == 2
+            thr = self.threshold if ch != 3 or self.tip_threshold is None else self.tip_threshold
+            det = peaks(pred[ch], thr, self.nms_px)
+            pairs = match_points(det, truth, self.match_px / px)
+            self.labelled[k] += len(truth)
+            self.in_sight[k] += int(seen.sum())
+            self.detections[k] += len(det)
+            self.matched[k] += len(pairs)
+            self.matched_in_sight[k] += int(sum(seen[b] for _, b, _ in pairs))
+            self.errors[k].extend(px * d for _, _, d in pairs)
+        for k, (c, ends) in enumerate(_LINE_ENDS):
+            if not all(bool(((vis[:, a] > 0) & (vis[:, b] > 0)).all()) for a, b in ends):
+                continue  # a line of this channel has no target: its pixels are unjudged
+            p, t = pred[c] > 0.5, target[c] > 0.5
+            self.inter[k] += float(np.count_nonzero(p & t))
+            self.union[k] += float(np.count_nonzero(p | t))
+            self.line_photos[k] += 1
+
+    def summary(self) -> dict[str, float]:
+        """``photos``, ``turbines``; per point type ``<name>_labelled``, ``<name>_recall``,
+        ``<name>_recall_in_sight``, ``<name>_precision``, ``<name>_median_px``; and
+        ``iou_<line>`` with ``iou_<line>_photos``, the photos it is over (NaN where
+        undefined)."""
+        out: dict[str, float] = {"photos": float(self.photos), "turbines": float(self.turbines)}
+        for k, (name, _, _) in enumerate(INSTANCE_POINTS):
+            e = self.errors[k]
+            out[f"{name}_labelled"] = float(self.labelled[k])
+            out[f"{name}_recall"] = _ratio(self.matched[k], self.labelled[k])
+            out[f"{name}_recall_in_sight"] = _ratio(self.matched_in_sight[k], self.in_sight[k])
+            out[f"{name}_precision"] = _ratio(self.matched[k], self.detections[k])
+            out[f"{name}_median_px"] = float(np.median(e)) if e else float("nan")
+        for k, name in enumerate(LINE_NAMES3):
+            out[f"iou_{name}"] = _ratio(self.inter[k], self.union[k])
+            out[f"iou_{name}_photos"] = float(self.line_photos[k])
+        return out
