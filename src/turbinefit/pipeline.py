@@ -530,11 +530,8 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
     items = read_coco_keypoints(labels, images_dir)
     if not items:
         raise InputError("no images in the label file", path=Path(labels))
-    for item in items:
-        w, h = check_image(item.path)
-        if (w, h) != (item.width, item.height):
-            raise InputError(f"image is {w}x{h} but its label entry says {item.width}x"
-                             f"{item.height}", path=item.path)
+    for item in items:  # headers only: a wrong file fails here, before any work
+        item.check_size(*check_image(item.path))
     out_path = None if out is None else Path(out)
     if out_path is not None:
         inputs = {Path(labels).resolve(), *(i.path.resolve() for i in items)}

@@ -129,7 +129,6 @@ class DetectionStats:
     tips_visible: int = 0
     tips_matched: int = 0
     tips_detections: int = 0
-    tips_true_detections: int = 0
     tips_in_sight: int = 0
     tips_in_sight_matched: int = 0
     tips_short: int = 0
@@ -178,13 +177,10 @@ class DetectionStats:
                 self.tip_along.append(
                     px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
         self.tips_matched += len(pairs)
-        self.tips_true_detections += len(pairs)
         self.tips_in_sight_matched += int(sum(tip_seen[b] for _, b, _ in pairs))
         self.tips_short_matched += int(sum(tip_short[b] for _, b, _ in pairs))
         for k, c in enumerate((4, 5, 6)):
-            p, t = pred[c] > 0.5, target[c] > 0.5
-            self.inter[k] += float(np.count_nonzero(p & t))
-            self.union[k] += float(np.count_nonzero(p | t))
+            _add_overlap(self.inter, self.union, k, pred[c], target[c])
 
     def summary(self) -> dict[str, float]:
         """Figures: ``<point>_median_px``, ``<point>_p90_px``, ``<point>_detected``,
@@ -201,7 +197,7 @@ class DetectionStats:
             out[f"{name}_detected"] = _ratio(self.point_detected[c], self.point_visible[c])
             out[f"{name}_false_peak"] = _ratio(self.point_false[c], self.point_hidden[c])
         out["tips_recall"] = _ratio(self.tips_matched, self.tips_visible)
-        out["tips_precision"] = _ratio(self.tips_true_detections, self.tips_detections)
+        out["tips_precision"] = _ratio(self.tips_matched, self.tips_detections)  # one-to-one
         out["tips_recall_in_sight"] = _ratio(self.tips_in_sight_matched, self.tips_in_sight)
         out["tips_in_sight"] = (_ratio(self.tips_in_sight, self.tips_visible)
                                 if self.tips_in_sight else float("nan"))
@@ -223,6 +219,14 @@ def _along(u: float, v: float, truth: NDArray[np.floating], axis: NDArray[np.flo
     if n < 1e-9:
         return 0.0
     return float(((u - truth[0]) * axis[0] + (v - truth[1]) * axis[1]) / n)
+
+
+def _add_overlap(inter: NDArray[np.float64], union: NDArray[np.float64], k: int,
+                 pred: NDArray[np.floating], target: NDArray[np.floating]) -> None:
+    """Add the pixels above 0.5 in both / either of ``pred`` and ``target`` to entry k."""
+    p, t = pred > 0.5, target > 0.5
+    inter[k] += float(np.count_nonzero(p & t))
+    union[k] += float(np.count_nonzero(p | t))
 
 
 def _ratio(a: float, b: float) -> float:
@@ -306,9 +310,7 @@ class InstanceStats:
         for k, (c, ends) in enumerate(_LINE_ENDS):
             if not all(bool(((vis[:, a] > 0) & (vis[:, b] > 0)).all()) for a, b in ends):
                 continue  # a line of this channel has no target: its pixels are unjudged
-            p, t = pred[c] > 0.5, target[c] > 0.5
-            self.inter[k] += float(np.count_nonzero(p & t))
-            self.union[k] += float(np.count_nonzero(p | t))
+            _add_overlap(self.inter, self.union, k, pred[c], target[c])
             self.line_photos[k] += 1
 
     def summary(self) -> dict[str, float]:

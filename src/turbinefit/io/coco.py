@@ -189,6 +189,13 @@ class LabelledImage:
                 raise ValueError(f"turbines must be TurbineKeypoints, got {type(t).__name__}")
         object.__setattr__(self, "turbines", turbines)
 
+    def check_size(self, width: int, height: int) -> None:
+        """Raise :class:`InputError` (naming the file) unless the image file's size
+        ``width`` x ``height`` is the size its label entry says."""
+        if (width, height) != (self.width, self.height):
+            raise InputError(f"image is {width}x{height} but its label entry says "
+                             f"{self.width}x{self.height}", path=self.path)
+
 
 # ============================================================================== reading
 

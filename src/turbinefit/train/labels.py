@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from turbinefit.errors import InputError
 from turbinefit.io.coco import LabelledImage
 from turbinefit.io.images import read_image, resize_image
 from turbinefit.sim.render import render_keypoint_heatmaps
@@ -27,9 +26,7 @@ def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: floa
     img = read_image(item.path)
     iw, ih = width * image_scale, height * image_scale  # the model's input size
     h0, w0 = img.shape[:2]
-    if (w0, h0) != (item.width, item.height):
-        raise InputError(f"image is {w0}x{h0} but its label entry says {item.width}x"
-                         f"{item.height}", path=item.path)
+    item.check_size(w0, h0)
     s = max(iw / w0, ih / h0)
     sw, sh = max(iw, round(w0 * s)), max(ih, round(h0 * s))
     big = resize_image(img, sw, sh)

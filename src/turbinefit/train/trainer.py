@@ -429,18 +429,18 @@ def train(cfg: TrainConfig, progress: bool = True,
                                  path=ckpt_path)
 
     data_dir = cfg.data_dir or (out / "data")
-    train_spec = DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale)
-    train_dir = data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}"
-    val_spec = DatasetSpec(max(cfg.val_images, 1), cfg.seed + VAL_SEED_OFFSET, image_scale=scale)
-    val_dir = data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}"
-    check_dataset_folder(train_dir, train_spec)
+    datasets = [(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}",
+                 DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale))]
     if cfg.val_images:
-        check_dataset_folder(val_dir, val_spec)
+        datasets.append((data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}",
+                         DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET,
+                                     image_scale=scale)))
+    for folder, spec in datasets:  # a folder of another spec: refused before any writing
+        check_dataset_folder(folder, spec)
     out.mkdir(parents=True, exist_ok=True)
-    rendered = build_dataset(train_dir, train_spec, cfg.workers, progress)
-    val: Dataset | None = None
-    if cfg.val_images:
-        val = build_dataset(val_dir, val_spec, cfg.workers, progress)
+    rendered, *vals = (build_dataset(folder, spec, cfg.workers, progress)
+                       for folder, spec in datasets)
+    val: Dataset | None = vals[0] if vals else None
     parts: list[_Arrays] = [_Arrays(rendered.images, rendered.targets, augment=True)]
     if labelled is not None:
         parts.append(_Arrays(labelled[0], labelled[1], augment=True))
