@@ -543,8 +543,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
     det = HeatmapDetector(model, threads)
     info = det.info
-    tip_threshold = info.tip_threshold
-    stats = InstanceStats(threshold=info.threshold, tip_threshold=tip_threshold,
+    stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
     for item in tqdm(items, desc="evaluating", unit="img", disable=None if progress else True):
         img = read_image(item.path)
@@ -560,12 +559,12 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
     if out_path is not None:
         report = {"turbinefit_version": __version__, "model": str(det.path),
                   "labels": str(labels), "input_width": info.input_width,
-                  "threshold": info.threshold, "tip_threshold": tip_threshold,
+                  "threshold": info.threshold, "tip_threshold": info.tip_threshold,
                   "match_px": match_px,  # NaN (undefined) is written as null
                   "metrics": {k: v if math.isfinite(v) else None for k, v in summary.items()}}
         write_text_atomic(out_path, json.dumps(report, indent=2) + "\n")
     return EvaluateReport(summary, len(items), Path(det.path), info.input_width,
-                          info.threshold, tip_threshold, out_path)
+                          info.threshold, info.tip_threshold, out_path)
 
 
 #: Everything ``track`` writes into its output folder: all that ``track --overwrite`` replaces.
