@@ -331,7 +331,7 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="W,W,W,W,W,W,W",
                    help="loss weight of each channel (base, tower_top, hub, tip, line_tower, "
                    "line_nacelle, line_blade); the shipped model's last fine-tuning used "
-                   "1,1,1,3,1,2,1")
+                   "1,1,1,3,1,5,1")
     t.add_argument("--max-steps", type=_positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")

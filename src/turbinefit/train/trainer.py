@@ -23,7 +23,7 @@ comes out above 0.5 once q > 1 / (1 + pos_weight)): the default 2 paints lines a
 wide as their targets, where 10 painted a third too much. ``channel_weights`` multiply
 each channel's loss (both its positive and its background pixels, so each channel's
 per-pixel optimum is unchanged): they only share the net's effort differently. The shipped
-model's last fine-tuning weighted the tip channel 3 and the nacelle 2.
+model's last fine-tuning weighted the tip channel 3 and the nacelle 5.
 
 Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
 brightness / contrast / colour jitter; the renderer provides the rest of the variety.
