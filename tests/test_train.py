@@ -22,7 +22,13 @@ from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypo
 from turbinefit.io.images import read_image, resize_image, write_png  # noqa: E402
 from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # noqa: E402
 from turbinefit.train.labels import labelled_sample  # noqa: E402
-from turbinefit.train.net import HeatmapNet, lift_to_input_scale_2, num_parameters  # noqa: E402
+from turbinefit.train.net import (  # noqa: E402
+    HeatmapNet,
+    architecture,
+    lift_to_input_scale_2,
+    num_parameters,
+    widen,
+)
 from turbinefit.train.trainer import (  # noqa: E402
     TrainConfig,
     _jitter,
@@ -89,6 +95,40 @@ def test_lifted_net_sees_320_px_photos_as_the_old_one_saw_160_px() -> None:
     assert rel(a, c) > 0.15  # measured 0.28
 
 
+def test_widened_net_computes_the_same_heatmaps_and_can_learn() -> None:
+    """widen(): a wider net (every block, the stem and the U-Net concatenations) gives the
+    old net's heat-maps exactly, and the zero weights from its new channels get gradients."""
+    torch.manual_seed(5)
+    old = HeatmapNet(input_scale=2)
+    x = torch.rand(2, 3, 240, 320)
+    old.train()
+    with torch.no_grad():
+        for _ in range(3):  # batch-norm statistics that are not the initial ones
+            old(x)
+        for p in old.parameters():  # and weights that are not a fresh net's
+            p.add_(0.05 * torch.randn_like(p))
+    old.eval()
+    widths = (40, 64, 96, 160)
+    state = widen(old.state_dict(), widths, stem=32)
+    assert architecture(state) == (widths, 32, 2)
+    new = HeatmapNet(widths, 32, input_scale=2)
+    new.load_state_dict(state)
+    new.eval()
+    with torch.no_grad():
+        a, b = forward(old, x), forward(new, x)
+    assert float((a - b).abs().max()) < 1e-4 * float(a.abs().max())
+    # a fresh net of the new widths does not (the test can fail)
+    fresh = HeatmapNet(widths, 32, input_scale=2).eval()
+    with torch.no_grad():
+        assert float((a - forward(fresh, x)).abs().max()) > 0.1
+    new.train()
+    heatmap_loss(forward(new, x), torch.rand(2, 7, 120, 160), 2.0).backward()
+    g = new.dec2[0][0].weight.grad  # old outputs reading the new 1/8-resolution channels
+    assert g is not None and float(g[:48, 64:96].abs().max()) > 0
+    with pytest.raises(ValueError, match="narrow"):
+        widen(state, (32, 48, 64, 112))
+
+
 def test_loss_optimum_is_the_target() -> None:
     target = torch.tensor([0.0, 0.2, 0.7, 1.0])
     logits = torch.logit(target.clamp(1e-4, 1 - 1e-4)).requires_grad_(True)
@@ -140,8 +180,8 @@ def test_a_few_steps_reduce_the_loss(tmp_path: Path) -> None:
     assert losses[-1] < 0.5 * losses[0]
 
 
-@pytest.mark.parametrize("scale", [1, 2])
-def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int) -> None:
+@pytest.mark.parametrize(("scale", "flip"), [(1, False), (2, False), (2, True)])
+def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int, flip: bool) -> None:
     torch.manual_seed(1)
     net = HeatmapNet(input_scale=scale)
     net.train()
@@ -149,7 +189,7 @@ def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int) -> None:
         net(torch.rand(4, 3, 128 * scale, 160 * scale))
     net.eval()
     info = ModelInfo(threshold=0.42, input_width=160 * scale, input_height=120 * scale,
-                     stride=16 * scale, output_scale=scale)
+                     stride=16 * scale, output_scale=scale, flip=flip)
     path = export_onnx(net, tmp_path / "m.onnx", info)
     det = HeatmapDetector(path, threads=1)
     assert det.info == info
@@ -160,6 +200,10 @@ def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int) -> None:
         x = torch.from_numpy(img.transpose(2, 0, 1).copy()).float()[None] / 255
         with torch.no_grad():
             ref = torch.sigmoid(forward(net, x))[0].numpy()
+            mirrored = torch.sigmoid(forward(net, x.flip(-1))).flip(-1)[0].numpy()
+        if flip:  # the mean with the mirror image's maps mirrored back
+            assert np.abs(mirrored - ref).max() > 1e-3  # the net itself is not symmetric
+            ref = 0.5 * (ref + mirrored)
         assert got.shape == ref.shape == (7, h, w)
         np.testing.assert_allclose(got, ref, atol=2e-5)
         # at the photo's own size: the maps resized back
@@ -261,6 +305,39 @@ def test_train_lifts_160_px_weights_to_320_px(tmp_path: Path,
     err = capsys.readouterr().err
     assert "input scale 2" in err and len(err.strip().splitlines()) == 1
     assert not back.exists()
+
+
+def test_train_widens_init_weights(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--widths wider than the --init weights' starts a wider net from them; narrower ones
+    and malformed widths are one clear error each (exit 2, nothing written)."""
+    from turbinefit.train.trainer import load_npz, save_npz
+
+    save_npz(HeatmapNet(input_scale=2), tmp_path / "narrow.npz")
+    common = ["--images", "16", "--val-images", "0", "--epochs", "1", "--batch", "8",
+              "--workers", "1", "--quiet", "--data", str(tmp_path / "data"), "--max-steps", "1"]
+    out = tmp_path / "wide"
+    assert main(["train", "--out", str(out), "--init", str(tmp_path / "narrow.npz"),
+                 "--widths", "32,48,96,160", *common]) == 0
+    assert load_npz(out / "weights.npz").enc4[0][0].out_channels == 160
+    with np.load(out / "weights.npz") as z:
+        assert architecture({k: torch.from_numpy(z[k]) for k in z.files})[0] == (32, 48, 96, 160)
+    det = HeatmapDetector(out / "model.onnx", threads=1)
+    assert det.detect(np.zeros((60, 80, 3), np.uint8)).shape == (7, 60, 80)
+    assert "(32, 48, 96, 160)" in det.info.description
+    capsys.readouterr()
+    narrower = tmp_path / "narrower"
+    assert main(["train", "--out", str(narrower), "--init", str(out / "weights.npz"),
+                 "--widths", "32,48,64,100", *common]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "narrower" in err[0]
+    assert not narrower.exists()
+    for bad in ("32,48,x,112", "32,48,64", "32,0,64,112"):
+        with pytest.raises(SystemExit) as e:
+            main(["train", "--out", str(narrower), "--widths", bad, *common])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert "--widths" in err[-1] and "Traceback" not in "\n".join(err)
+    assert not narrower.exists()
 
 
 @pytest.mark.parametrize("bad", ["missing", "unknown_name", "weights"])

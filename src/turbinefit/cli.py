@@ -75,6 +75,17 @@ def _channel_weights(text: str) -> tuple[float, ...]:
     return w
 
 
+def _widths(text: str) -> tuple[int, int, int, int]:
+    """Four comma-separated positive integers (channel widths of the heat-map CNN)."""
+    try:
+        w = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        w = ()
+    if len(w) != 4 or not all(x >= 1 for x in w):
+        raise argparse.ArgumentTypeError(f"expected 4 comma-separated integers >= 1, got {text!r}")
+    return w[0], w[1], w[2], w[3]
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="turbinefit",
@@ -332,6 +343,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="loss weight of each channel (base, tower_top, hub, tip, line_tower, "
                    "line_nacelle, line_blade); the shipped model's last fine-tuning used "
                    "1,1,1,3,1,5,1")
+    t.add_argument("--widths", type=_widths, default=None, metavar="W1,W2,W3,W4",
+                   help="channel widths of the net at 1/2, 1/4, 1/8, 1/16 of the heat-map "
+                   "resolution (default: those of --init, else 32,48,64,112); --init weights "
+                   "of a narrower net are widened so that training starts from their heat-maps")
     t.add_argument("--max-steps", type=_positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -764,7 +779,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
                       threads=args.threads, workers=args.workers, data_dir=args.data_dir,
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
-                      pos_weight=args.pos_weight, channel_weights=args.channel_weights)
+                      pos_weight=args.pos_weight, channel_weights=args.channel_weights,
+                      widths=args.widths)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

@@ -24,7 +24,9 @@ Shape of the net (channels at each scale, heat-maps 160 x 120):
   convolution.
 
 Every convolution is followed by batch norm and ReLU (batch norm folds into the
-convolutions at ONNX export). About 0.63 M parameters. Measured on the machine that
+convolutions at ONNX export). About 0.63 M parameters with the default :data:`WIDTHS`;
+:func:`widen` turns trained weights into a wider net's that starts out computing the same
+heat-maps, and :func:`architecture` reads the widths off any weights. Measured on the machine that
 trained the first model (one thread, channels-last, batch 16 of 160 x 128): ~60 training
 samples/s, and a full-resolution head (3x3 convs at 160 x 128) halved that, for no
 visible gain in peak placement. On this project's current 2-core machine the same net
@@ -96,6 +98,70 @@ class HeatmapNet(nn.Module):
 
 def num_parameters(net: nn.Module) -> int:
     return sum(p.numel() for p in net.parameters())
+
+
+Widths = tuple[int, int, int, int]
+
+
+def architecture(state: dict[str, torch.Tensor]) -> tuple[Widths, int, int]:
+    """``(widths, stem, input_scale)`` of the net whose ``state_dict`` is ``state``, read
+    off the weights' shapes (a net of input scale 2 has the full-resolution ``pre``)."""
+    def out(key: str) -> int:
+        return int(state[key].shape[0])
+    widths = (out("enc1.0.weight"), out("enc2.1.0.weight"), out("enc3.1.0.weight"),
+              out("enc4.1.0.weight"))
+    return widths, out("stem.0.weight"), 2 if "pre.0.weight" in state else 1
+
+
+def _input_segments(name: str, old: Widths, new: Widths, stem_old: int, stem_new: int,
+                    cin_old: int, cin_new: int) -> list[tuple[int, int, int]]:
+    """(old start, new start, length) of the old input channels of conv ``name`` in its
+    new input: the U-Net concatenations [up-sampled deeper features, skip] move the skip's
+    channels when the deeper block is widened."""
+    w_old, w_new = (0, *old), (0, *new)
+    concat = {"dec3.0.0": 4, "dec2.0.0": 3, "dec1.0": 2}  # deeper block of the concatenation
+    if name in concat:
+        k = concat[name]
+        return [(0, 0, w_old[k]), (w_old[k], w_new[k], w_old[k - 1])]
+    if name == "enc1.0":
+        return [(0, 0, stem_old)]
+    return [(0, 0, min(cin_old, cin_new))]
+
+
+def widen(state: dict[str, torch.Tensor], widths: Widths, stem: int | None = None,
+          seed: int = 0) -> dict[str, torch.Tensor]:
+    """Weights of a wider net that computes exactly what ``state`` computes (in eval mode).
+
+    Each convolution keeps its old weights; its new output channels start random (as a
+    fresh net's) and every old output channel reads the new input channels with weight
+    zero, so the new channels change nothing until training moves those zeros (their
+    gradients are not zero). This is the function-preserving widening of Net2Net (Chen et
+    al., 2016) with zero instead of copied channels: fine-tuning starts from the trained
+    net's heat-maps and spends its steps on what the extra capacity adds.
+    """
+    old_w, old_stem, scale = architecture(state)
+    stem = old_stem if stem is None else stem
+    if any(n < o for n, o in zip(widths, old_w, strict=True)) or stem < old_stem:
+        raise ValueError(f"cannot narrow a net: widths {old_w} stem {old_stem} -> {widths} "
+                         f"stem {stem}")
+    torch.manual_seed(seed)
+    fresh = HeatmapNet(widths, stem, input_scale=scale).state_dict()
+    new = {k: v.clone() for k, v in fresh.items()}
+    for key, v_old in state.items():
+        v = new[key]
+        if v.shape == v_old.shape:
+            new[key] = v_old.clone()
+        elif v.dim() == 4:  # convolution weight (out, in, kh, kw)
+            co = v_old.shape[0]
+            v[:co] = 0.0
+            for a, b, n in _input_segments(key.rsplit(".", 1)[0], old_w, widths, old_stem, stem,
+                                           v_old.shape[1], v.shape[1]):
+                v[:co, b:b + n] = v_old[:, a:a + n]
+        elif v.dim() == 1:  # batch-norm statistics / affine, head bias
+            v[:v_old.shape[0]] = v_old
+        else:
+            new[key] = v_old.clone()
+    return new
 
 
 def lift_to_input_scale_2(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:

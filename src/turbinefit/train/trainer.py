@@ -67,14 +67,23 @@ from turbinefit.sim.dataset import (
     build_dataset,
     check_dataset_folder,
 )
-from turbinefit.train.net import STRIDE, HeatmapNet, lift_to_input_scale_2, num_parameters
+from turbinefit.train.net import (
+    STRIDE,
+    WIDTHS,
+    HeatmapNet,
+    Widths,
+    architecture,
+    lift_to_input_scale_2,
+    num_parameters,
+    widen,
+)
 
 #: Seed offset of the held-out renders (independent of the training renders).
 VAL_SEED_OFFSET = 1_000_003
 OPSET = 17
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
-                "input_scale", "pos_weight", "channel_weights")
+                "input_scale", "pos_weight", "channel_weights", "widths")
 
 
 @dataclass
@@ -105,6 +114,11 @@ class TrainConfig:
             (2: 320 x 240 photos, the shipped model; 1: 160 x 120). ``init`` weights of
             input scale 1 are lifted to 2 (:func:`~turbinefit.train.net.lift_to_input_scale_2`);
             fine-tuning the shipped model on labels keeps its scale.
+        widths: channel widths of the net at 1/2, 1/4, 1/8 and 1/16 of the heat-map
+            resolution (:data:`~turbinefit.train.net.WIDTHS` by default); ``init``
+            weights of a narrower net are widened first
+            (:func:`~turbinefit.train.net.widen`: the wider net starts out computing the
+            same heat-maps). None: those of ``init`` (or the default).
     """
 
     out_dir: Path
@@ -125,6 +139,7 @@ class TrainConfig:
     init: Path | None = None
     max_steps: int | None = None
     input_scale: int = IMAGE_SCALE
+    widths: Widths | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -138,6 +153,10 @@ class TrainConfig:
             raise InputError(f"must be >= 0, got {self.pos_weight}", field="pos_weight")
         if self.input_scale not in (1, 2):
             raise InputError(f"must be 1 or 2, got {self.input_scale}", field="input_scale")
+        if self.widths is not None and (len(self.widths) != 4
+                                        or not all(w >= 1 for w in self.widths)):
+            raise InputError(f"must be 4 channel counts >= 1, got {self.widths}",
+                             field="widths")
         cw = self.channel_weights
         if len(cw) != NUM_CHANNELS or not all(w >= 0 and math.isfinite(w) for w in cw) \
                 or not any(w > 0 for w in cw):
@@ -197,24 +216,40 @@ def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float,
     return (F.binary_cross_entropy_with_logits(logits, target, reduction="none") * w).mean()
 
 
-def load_npz(path: Path, input_scale: int | None = None) -> HeatmapNet:
-    """The net of a ``weights.npz``, of ``input_scale`` (default: that of the weights,
-    read off them: only a net of input scale 2 has the full-resolution ``pre`` layer).
+def load_npz(path: Path, input_scale: int | None = None,
+             widths: Widths | None = None) -> HeatmapNet:
+    """The net of a ``weights.npz``, of ``input_scale`` and ``widths`` (default: those of
+    the weights, read off their shapes by :func:`~turbinefit.train.net.architecture`).
     Weights of input scale 1 are lifted to 2 by
-    :func:`~turbinefit.train.net.lift_to_input_scale_2`; 2 cannot go back to 1."""
+    :func:`~turbinefit.train.net.lift_to_input_scale_2` (2 cannot go back to 1), and
+    weights of a narrower net are widened by :func:`~turbinefit.train.net.widen`."""
     try:
         with np.load(path) as z:
             state = {k: torch.from_numpy(z[k]) for k in z.files}
     except (OSError, ValueError) as e:
         raise InputError(f"cannot read weights: {e}", path=path) from e
-    have = 2 if "pre.0.weight" in state else 1
+    try:
+        have_widths, stem, have = architecture(state)
+    except KeyError as e:
+        raise InputError(f"not weights of a HeatmapNet (no {e})", path=path) from None
     scale = input_scale or have
     if have == 2 and scale == 1:
         raise InputError("weights are of a net of input scale 2; they cannot start one of "
                          "input scale 1", path=path)
-    net = HeatmapNet(input_scale=scale)
+    if have < scale:
+        if have_widths != WIDTHS:
+            raise InputError("only weights of the default widths can be lifted to input "
+                             "scale 2", path=path)
+        state = lift_to_input_scale_2(state)
+    widths = widths or have_widths
+    if widths != have_widths:
+        if any(n < o for n, o in zip(widths, have_widths, strict=True)):
+            raise InputError(f"weights are of a net of widths {have_widths}; they cannot "
+                             f"start a narrower one {widths}", path=path)
+        state = widen(state, widths)
+    net = HeatmapNet(widths, stem, input_scale=scale)
     try:
-        net.load_state_dict(lift_to_input_scale_2(state) if have < scale else state)
+        net.load_state_dict(state)
     except RuntimeError as e:
         raise InputError(f"weights do not fit the net: {str(e).splitlines()[0]}", path=path) from e
     return net
@@ -279,10 +314,13 @@ class EpochRecord:
 def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uint8],
              points: NDArray[np.floating], visible: NDArray[np.bool_], pos_weight: float,
              thresholds: tuple[float, ...] = (0.3,), batch: int = 32,
-             tip_threshold: float | None = None
+             tip_threshold: float | None = None, flip: bool = True
              ) -> tuple[float, dict[float, dict[str, float]]]:
     """Held-out loss and :class:`DetectionStats` summaries, one per threshold (tips at
-    the same threshold unless ``tip_threshold``)."""
+    the same threshold unless ``tip_threshold``), of the maps as
+    :class:`~turbinefit.detect.HeatmapDetector` makes them: with ``flip``, the mean of the
+    maps of each image and of its mirror image mirrored back (the loss is of the image's
+    own maps)."""
     net.eval()
     stats = {t: DetectionStats(threshold=t, tip_threshold=tip_threshold) for t in thresholds}
     total, n = 0.0, 0
@@ -293,7 +331,10 @@ def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uin
             logits = forward(net, x.float() / 255.0)
             total += float(heatmap_loss(logits, y, pos_weight)) * len(x)
             n += len(x)
-            pred = torch.sigmoid(logits).numpy()
+            prob = torch.sigmoid(logits)
+            if flip:
+                prob = 0.5 * (prob + torch.sigmoid(forward(net, x.flip(-1).float() / 255.0)).flip(-1))
+            pred = prob.numpy()
             tgt = y.numpy()
             for j in range(len(x)):
                 for s in stats.values():
@@ -405,8 +446,9 @@ def train(cfg: TrainConfig, progress: bool = True,
     if init is None and cfg.labels is not None:
         from turbinefit.detect import default_model_path
         init = default_model_path().with_suffix(".npz")
-    net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale) if init is not None
-           else HeatmapNet(input_scale=cfg.input_scale))
+    net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale, cfg.widths)
+           if init is not None
+           else HeatmapNet(cfg.widths or WIDTHS, input_scale=cfg.input_scale))
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     scale = net.input_scale
     labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
@@ -515,13 +557,14 @@ def train(cfg: TrainConfig, progress: bool = True,
     if val is not None:
         _, final, (threshold, tip_threshold) = _calibrated_metrics(net, val, cfg.pos_weight, grid)
         log(f"held-out, final: {format_metrics(final)}")
-    desc = (f"HeatmapNet {num_parameters(net)} params; {cfg.n_images} renders seed {cfg.seed}"
+    desc = (f"HeatmapNet widths {architecture(net.state_dict())[0]}, {num_parameters(net)} params; "
+            f"{cfg.n_images} renders seed {cfg.seed}"
             f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
             f"{' from ' + Path(init).name if init is not None else ''}")
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
-                     tip_threshold=tip_threshold, opset=OPSET,
+                     tip_threshold=tip_threshold, flip=True, opset=OPSET,
                      description=desc)
     model_path = export_onnx(net, out / "model.onnx", info)
     save_npz(net, out / "weights.npz")
