@@ -9,6 +9,7 @@ DEMO   := demo
 # the CPU build of PyTorch (training only); an unpinned torch pulls a multi-GB CUDA build
 TORCH  := 2.13.0
 MODEL_IMAGES ?= 24000
+MODEL_WIDTHS ?= 32,48,96,192
 MODEL_EPOCHS ?= 8
 
 .PHONY: demo test bench model lint typecheck check clean
@@ -43,7 +44,8 @@ bench: $(STAMP)
 ## model: train a heat-map CNN like the shipped one from scratch (320x240 photos, 160x120
 ##        heat-maps; several hours on 2 cores; see the README for how the shipped one was made)
 model: $(STAMP)
-	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS)
+	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS) \
+		--widths $(MODEL_WIDTHS)
 	cp models/heatmap_cnn/model.onnx src/turbinefit/models/heatmap_cnn.onnx
 	cp models/heatmap_cnn/weights.npz src/turbinefit/models/heatmap_cnn.npz
 	cp models/heatmap_cnn/history.csv src/turbinefit/models/heatmap_cnn_history.csv

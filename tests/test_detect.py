@@ -127,8 +127,8 @@ def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:
     return err
 
 
-def _tiny_model(path: Path, out_channels: int = 7, opset: int = 17, meta_opset: str | None = None,
-                fixed: bool = False) -> Path:
+def _tiny_model(path: Path, out_channels: int = 7, opset: int = 17,
+                meta: dict[str, str] | None = None, fixed: bool = False) -> Path:
     from onnx import TensorProto, helper, numpy_helper
 
     w = numpy_helper.from_array(np.zeros((out_channels, 3, 1, 1), np.float32), "w")
@@ -140,9 +140,9 @@ def _tiny_model(path: Path, out_channels: int = 7, opset: int = 17, meta_opset: 
         [helper.make_tensor_value_info("y", TensorProto.FLOAT, odims)], [w])
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)])
     model.ir_version = 8
-    if meta_opset is not None:
+    for key, value in (meta or {}).items():
         e = model.metadata_props.add()
-        e.key, e.value = "turbinefit.opset", meta_opset
+        e.key, e.value = key, value
     path.write_bytes(model.SerializeToString())
     return path
 
@@ -172,13 +172,16 @@ def test_detect_bad_input(tmp_path: Path, samples: list, capsys: pytest.CaptureF
     shutil.copy(good, tmp_path / "b" / "good.png")
     assert main(["detect", str(good), str(tmp_path / "b"), "--out", str(out)]) == 2
     _one_line_error(capsys, "share the name")
-    # models: not ONNX, wrong output shape, unsupported opset (file and metadata), fixed size
+    # models: not ONNX, wrong output shape, unsupported opset (file and metadata), a
+    # metadata flag that is not one, fixed size
     (tmp_path / "junk.onnx").write_bytes(b"\x00\x01junk")
     cases = {
         "junk.onnx": "not a usable ONNX model",
         _tiny_model(tmp_path / "c5.onnx", out_channels=5).name: "output has shape",
         _tiny_model(tmp_path / "op99.onnx", opset=99).name: "not a usable ONNX model",
-        _tiny_model(tmp_path / "meta.onnx", meta_opset="99").name: "opset 99",
+        _tiny_model(tmp_path / "meta.onnx", meta={"turbinefit.opset": "99"}).name: "opset 99",
+        _tiny_model(tmp_path / "flip.onnx", meta={"turbinefit.flip": "yes"}).name:
+            "turbinefit.flip='yes' is not a valid flag",
         _tiny_model(tmp_path / "fixed.onnx", fixed=True).name: "fixed image size",
         "missing.onnx": "model file not found",
     }

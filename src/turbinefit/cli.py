@@ -86,6 +86,17 @@ def _widths(text: str) -> tuple[int, int, int, int]:
     return w[0], w[1], w[2], w[3]
 
 
+class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Appends an option's default to its help, unless the help already says it or the
+    default is None or a flag's False (nothing worth saying)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default is None or action.default is False or "(default" in text:
+            return text
+        return super()._get_help_string(action) or text
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="turbinefit",
@@ -103,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Simulate an inspection flight around a realistic turbine: ground-truth "
         "poses and turbine, heat-maps as a CNN would give them, drifting GPS/IMU poses and a "
         "noisy initial turbine. Writes a flight folder (see `turbinefit --help`).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_DefaultsFormatter)
     s.add_argument("out_dir", metavar="OUT_DIR", type=Path, nargs="?",
                    help="flight folder to create")
     s.add_argument("--keyframes", type=_positive_int, default=200, help="number of keyframes")
@@ -259,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
         "values in [0, 1]), and OUT_DIR/<stem>.png, the photo with the heat-maps overlaid "
         "(base red, tower top orange, hub yellow, tips magenta, tower cyan, nacelle green, "
         "blades blue). OUT_DIR is written atomically.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_DefaultsFormatter)
     d.add_argument("inputs", metavar="IMAGES_OR_DIRS", type=Path, nargs="+",
                    help="photos, or folders of photos (not recursive)")
     d.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
@@ -282,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Distances are in pixels of the photos resized to the model's input width (320 px "
         "for the shipped model), as the held-out benchmark measures them. Use it to see how "
         "the shipped model (or a fine-tuned one) does on your own photos.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_DefaultsFormatter)
     v.add_argument("--labels", type=Path, required=True, help="COCO keypoint JSON file")
     v.add_argument("--images-dir", type=Path, required=True,
                    help="folder the COCO file_name entries are relative to")
@@ -307,7 +318,7 @@ def build_parser() -> argparse.ArgumentParser:
         "weights.npz. With --labels, fine-tunes (from the shipped model unless --init) on "
         "real photos labelled with COCO keypoints base, tower_top, hub, tip_1, tip_2, tip_3 "
         "(CVAT / Label Studio export) together with the renders.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_DefaultsFormatter)
     t.add_argument("--out", dest="out_dir", metavar="MODEL_DIR", type=Path, required=True,
                    help="output folder: checkpoint.pt, history.csv, model.onnx, weights.npz, "
                    "data/ (required)")
