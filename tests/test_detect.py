@@ -116,6 +116,18 @@ def test_detect_cli(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture
     assert main(["detect", str(photos / "img0.png"), "--out", str(out), "--quiet",
                  "--overwrite"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["img0.npy", "img0.png"]
+    # --no-flip: the net once per photo, as HeatmapDetector(flip=False); by default the
+    # shipped model's metadata asks for flip averaging, which gives other maps
+    plain = tmp_path / "plain"
+    assert main(["detect", str(photos / "img0.png"), "--out", str(plain), "--quiet",
+                 "--no-flip"]) == 0
+    img = read_image(photos / "img0.png")
+    assert HeatmapDetector(threads=1).flip
+    np.testing.assert_allclose(np.load(plain / "img0.npy"),
+                               HeatmapDetector(threads=1, flip=False).detect(img), atol=1e-5)
+    np.testing.assert_allclose(np.load(out / "img0.npy"),
+                               HeatmapDetector(threads=1).detect(img), atol=1e-5)
+    assert np.abs(np.load(plain / "img0.npy") - np.load(out / "img0.npy")).max() > 1e-3
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:
@@ -210,6 +222,11 @@ def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.Captur
     summary = json.loads((out / "summary.json").read_text())
     assert summary["heatmaps"].startswith("detected from images/")
     assert not (flight / "heatmaps").exists()
+    # --no-flip reaches the detector: other heat-maps, another (if close) fit
+    assert main(["fit", str(flight), "--out", str(tmp_path / "fit_nf"), "--no-plots",
+                 "--quiet", "--no-flip"]) == 0
+    assert (tmp_path / "fit_nf" / "turbine.yaml").read_text() != \
+        (out / "turbine.yaml").read_text()
     # a photo missing / of the wrong size: one clear error, nothing written
     photos[3].unlink()
     assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2

@@ -279,6 +279,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ONNX model (default: the shipped model)")
     d.add_argument("--threads", type=_positive_int, default=None,
                    help="inference threads (default: all cores)")
+    _add_flip_option(d)
     d.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds only detect outputs")
     d.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -306,6 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--overwrite", action="store_true", help="replace an existing REPORT.json")
     v.add_argument("--threads", type=_positive_int, default=None,
                    help="inference threads (default: all cores)")
+    _add_flip_option(v)
     v.add_argument("--quiet", action="store_true", help="no progress bar")
 
     # ---- train ------------------------------------------------------------------
@@ -377,13 +379,22 @@ def _add_flight_job_options(parser: argparse.ArgumentParser, dflt: Any, presets:
 
 
 def _add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
-    """--from-images, --model, --no-plots (``fit`` and ``track``)."""
+    """--from-images, --model, --no-flip, --no-plots (``fit`` and ``track``)."""
     parser.add_argument("--from-images", action="store_true", default=None,
                         help=f"{what} even if heatmaps/ exists (default: only when heatmaps/ "
                         "is absent)")
     parser.add_argument("--model", type=Path, default=None,
                         help="ONNX heat-map model for detection (default: the shipped one)")
+    _add_flip_option(parser)
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+def _add_flip_option(parser: argparse.ArgumentParser) -> None:
+    """--no-flip: args.flip is False when given, else None (the model's metadata decides)."""
+    parser.add_argument("--no-flip", dest="flip", action="store_false", default=None,
+                        help="run the CNN once per photo instead of averaging its maps with "
+                        "those of the mirror image (faster, less accurate; default: as the "
+                        "model's metadata says, flip averaging for the shipped model)")
 
 
 def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any, batch: bool = True) -> None:
@@ -493,7 +504,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         report = fit_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
                             overwrite=args.overwrite, progress=progress,
                             config_path=args.config, from_images=args.from_images,
-                            model=args.model, detect_progress=not args.quiet)
+                            model=args.model, detect_progress=not args.quiet,
+                            flip=args.flip)
     finally:
         if bar is not None:
             bar.close()
@@ -637,7 +649,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         report = track_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
                               overwrite=args.overwrite, progress=progress,
                               config_path=args.config, from_images=args.from_images,
-                              model=args.model)
+                              model=args.model, flip=args.flip)
     finally:
         if bar is not None:
             bar.close()
@@ -737,7 +749,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     from turbinefit.pipeline import detect_images
 
     rep = detect_images(args.inputs, args.out_dir, args.model, overwrite=args.overwrite,
-                        progress=not args.quiet, threads=args.threads)
+                        progress=not args.quiet, threads=args.threads, flip=args.flip)
     if not args.quiet:
         print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
               f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
@@ -750,7 +762,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     rep = evaluate_labels(args.labels, args.images_dir, args.model, out=args.out,
                           overwrite=args.overwrite, match_px=args.match_px,
-                          progress=not args.quiet, threads=args.threads)
+                          progress=not args.quiet, threads=args.threads, flip=args.flip)
     m = rep.summary
     print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
           f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}); distances in "

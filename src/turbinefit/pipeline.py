@@ -188,6 +188,7 @@ def fit_folder(
     from_images: bool | None = None,
     model: str | os.PathLike[str] | None = None,
     detect_progress: bool = False,
+    flip: bool | None = None,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -216,7 +217,7 @@ def fit_folder(
     t0 = time.perf_counter()
     if from_images is None:
         from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
-    source = (image_heatmap_source(flight_dir, model, progress=detect_progress)
+    source = (image_heatmap_source(flight_dir, model, progress=detect_progress, flip=flip)
               if from_images else None)
     flight = read_flight(flight_dir, heatmaps=source)
     timings["load"] = time.perf_counter() - t0
@@ -389,7 +390,8 @@ def _photo_size_error(img: np.ndarray, camera: PinholeCamera) -> str | None:
 def image_heatmap_source(flight_dir: str | os.PathLike[str],
                          model: str | os.PathLike[str] | None = None,
                          width: int = FIT_DETECT_WIDTH, progress: bool = False,
-                         threads: int | None = None) -> HeatmapSource:
+                         threads: int | None = None, flip: bool | None = None
+                         ) -> HeatmapSource:
     """A :data:`~turbinefit.io.flight_folder.HeatmapSource` detecting the heat-maps of
     every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped).
 
@@ -406,7 +408,7 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
 
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
-        detector = HeatmapDetector(model, threads)
+        detector = HeatmapDetector(model, threads, flip=flip)
         cam = detection_camera(camera, width)
         maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
         for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
@@ -445,7 +447,8 @@ class DetectReport:
 
 def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                   model: str | os.PathLike[str] | None = None, *, overwrite: bool = False,
-                  progress: bool = False, threads: int | None = None) -> DetectReport:
+                  progress: bool = False, threads: int | None = None,
+                  flip: bool | None = None) -> DetectReport:
     """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
     photo, ``<stem>.npy`` (float32 (7, H, W) at the photo's size, channels of
     :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
@@ -467,7 +470,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
         check_image(p)
     _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
     check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
-    detector = HeatmapDetector(model, threads)
+    detector = HeatmapDetector(model, threads, flip=flip)
     t0 = time.perf_counter()
     t_det = 0.0
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
@@ -506,7 +509,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
                     model: str | os.PathLike[str] | None = None, *,
                     out: str | os.PathLike[str] | None = None, overwrite: bool = False,
                     match_px: float = 5.0, progress: bool = False,
-                    threads: int | None = None) -> EvaluateReport:
+                    threads: int | None = None, flip: bool | None = None) -> EvaluateReport:
     """Detection metrics of the ONNX ``model`` (default: shipped) on photos labelled with
     COCO keypoints (:func:`turbinefit.io.coco.read_coco_keypoints`; any number of
     turbines per photo, photos without any are negatives), and, with ``out``, a JSON
@@ -541,7 +544,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("is a folder; the report is a JSON file", path=out_path)
         if out_path.exists() and not overwrite:
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
-    det = HeatmapDetector(model, threads)
+    det = HeatmapDetector(model, threads, flip=flip)
     info = det.info
     stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
@@ -639,6 +642,7 @@ def track_folder(
     config_path: str | os.PathLike[str] | None = None,
     from_images: bool | None = None,
     model: str | os.PathLike[str] | None = None,
+    flip: bool | None = None,
 ) -> TrackReport:
     """Replay the flight in ``flight_dir`` keyframe by keyframe through a :class:`Tracker`.
 
@@ -666,7 +670,7 @@ def track_folder(
     photos: list[Path] = []
     detector: Callable[[np.ndarray], np.ndarray] | None = None
     if from_images:
-        flight, photos, detector = _photo_flight(flight_dir, model)
+        flight, photos, detector = _photo_flight(flight_dir, model, flip)
     else:
         flight = read_flight(flight_dir)
     tracker = Tracker(flight.camera, flight.turbine, cfg, detector=detector)
@@ -752,7 +756,8 @@ def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:
     return {"tracker": _plain(d), "fit": cfg.fit.to_dict()}
 
 
-def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
+def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
+                  flip: bool | None = None
                   ) -> tuple[Flight, list[Path], Callable[[np.ndarray], np.ndarray]]:
     """The flight with its photos in place of heat-maps: the photos' paths, checked, and a
     detector making heat-maps at the fit's working size (see :func:`image_heatmap_source`).
@@ -773,7 +778,8 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None
         return cam, HeatmapStack([blank] * len(paths))
 
     flight = read_flight(flight_dir, heatmaps=source)
-    detector = HeatmapDetector(model, spinning=False)  # the solver needs the cores between photos
+    # spinning off: the solver needs the cores between photos
+    detector = HeatmapDetector(model, spinning=False, flip=flip)
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:
