@@ -96,7 +96,8 @@ def test_detection_metrics_of_perfect_maps(samples: list) -> None:
     assert m["tips_precision"] == pytest.approx(1.0) or np.isnan(m["tips_precision"])
 
 
-def test_detect_cli(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture[str]) -> None:
+def test_detect_cli(tmp_path: Path, samples: list, detector: HeatmapDetector,
+                    capsys: pytest.CaptureFixture[str]) -> None:
     photos = tmp_path / "photos"
     photos.mkdir()
     for k, s in enumerate(samples[:3]):
@@ -122,11 +123,10 @@ def test_detect_cli(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture
     assert main(["detect", str(photos / "img0.png"), "--out", str(plain), "--quiet",
                  "--no-flip"]) == 0
     img = read_image(photos / "img0.png")
-    assert HeatmapDetector(threads=1).flip
+    assert detector.flip
     np.testing.assert_allclose(np.load(plain / "img0.npy"),
                                HeatmapDetector(threads=1, flip=False).detect(img), atol=1e-5)
-    np.testing.assert_allclose(np.load(out / "img0.npy"),
-                               HeatmapDetector(threads=1).detect(img), atol=1e-5)
+    np.testing.assert_allclose(np.load(out / "img0.npy"), detector.detect(img), atol=1e-5)
     assert np.abs(np.load(plain / "img0.npy") - np.load(out / "img0.npy")).max() > 1e-3
 
 

@@ -142,8 +142,8 @@ def widen(state: dict[str, torch.Tensor], widths: Widths, stem: int | None = Non
     old_w, old_stem, scale = architecture(state)
     stem = old_stem if stem is None else stem
     if any(n < o for n, o in zip(widths, old_w, strict=True)) or stem < old_stem:
-        raise ValueError(f"cannot narrow a net: widths {old_w} stem {old_stem} -> {widths} "
-                         f"stem {stem}")
+        raise ValueError(f"cannot narrow a net: weights of widths {old_w} (stem {old_stem}) "
+                         f"cannot start a narrower one {widths} (stem {stem})")
     torch.manual_seed(seed)
     fresh = HeatmapNet(widths, stem, input_scale=scale).state_dict()
     new = {k: v.clone() for k, v in fresh.items()}

@@ -81,6 +81,9 @@ from turbinefit.train.net import (
 #: Seed offset of the held-out renders (independent of the training renders).
 VAL_SEED_OFFSET = 1_000_003
 OPSET = 17
+#: Exported models ask for flip averaging (ModelInfo.flip), and their thresholds are
+#: calibrated on flip-averaged maps (evaluate's default).
+FLIP = True
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
                 "input_scale", "pos_weight", "channel_weights", "widths")
@@ -243,10 +246,10 @@ def load_npz(path: Path, input_scale: int | None = None,
         state = lift_to_input_scale_2(state)
     widths = widths or have_widths
     if widths != have_widths:
-        if any(n < o for n, o in zip(widths, have_widths, strict=True)):
-            raise InputError(f"weights are of a net of widths {have_widths}; they cannot "
-                             f"start a narrower one {widths}", path=path)
-        state = widen(state, widths)
+        try:
+            state = widen(state, widths)
+        except ValueError as e:  # narrower than the weights
+            raise InputError(str(e), path=path) from None
     net = HeatmapNet(widths, stem, input_scale=scale)
     try:
         net.load_state_dict(state)
@@ -314,7 +317,7 @@ class EpochRecord:
 def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uint8],
              points: NDArray[np.floating], visible: NDArray[np.bool_], pos_weight: float,
              thresholds: tuple[float, ...] = (0.3,), batch: int = 32,
-             tip_threshold: float | None = None, flip: bool = True
+             tip_threshold: float | None = None, flip: bool = FLIP
              ) -> tuple[float, dict[float, dict[str, float]]]:
     """Held-out loss and :class:`DetectionStats` summaries, one per threshold (tips at
     the same threshold unless ``tip_threshold``), of the maps as
@@ -328,12 +331,13 @@ def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uin
         for k in range(0, len(images), batch):
             x = torch.from_numpy(np.array(images[k:k + batch]).transpose(0, 3, 1, 2).copy())
             y = torch.from_numpy(np.array(targets[k:k + batch])).float() / 255.0
-            logits = forward(net, x.float() / 255.0)
+            xf = x.float() / 255.0
+            logits = forward(net, xf)
             total += float(heatmap_loss(logits, y, pos_weight)) * len(x)
             n += len(x)
             prob = torch.sigmoid(logits)
             if flip:
-                prob = 0.5 * (prob + torch.sigmoid(forward(net, x.flip(-1).float() / 255.0)).flip(-1))
+                prob = 0.5 * (prob + torch.sigmoid(forward(net, xf.flip(-1))).flip(-1))
             pred = prob.numpy()
             tgt = y.numpy()
             for j in range(len(x)):
@@ -564,7 +568,7 @@ def train(cfg: TrainConfig, progress: bool = True,
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
-                     tip_threshold=tip_threshold, flip=True, opset=OPSET,
+                     tip_threshold=tip_threshold, flip=FLIP, opset=OPSET,
                      description=desc)
     model_path = export_onnx(net, out / "model.onnx", info)
     save_npz(net, out / "weights.npz")
