@@ -86,6 +86,23 @@ def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: li
     assert detector.detect_small(s.image).shape == (7, 120, 160)
 
 
+def test_maps_are_resized_as_pillow_resizes_them(detector: HeatmapDetector,
+                                                samples: list) -> None:
+    """Enlarging on onnxruntime (the shipped resize graph) gives Pillow's bilinear maps;
+    shrinking (a photo narrower than the heat-maps) and mixed sizes use Pillow itself."""
+    from turbinefit.io.images import resize_maps
+
+    small = detector.detect_small(samples[1].image)
+    for w, h in ((320, 240), (640, 480), (401, 133), (100, 75), (200, 90)):
+        got = detector.detect(samples[1].image, size=(w, h))
+        want = np.clip(resize_maps(small, w, h), 0.0, 1.0)
+        assert got.shape == (7, h, w) and got.dtype == np.float32
+        np.testing.assert_allclose(got, want, atol=1e-5)  # float32 rounding
+    # the comparison can fail: nearest-neighbour enlargement is not what detect gives
+    near = np.repeat(np.repeat(small, 2, axis=1), 2, axis=2)
+    assert float(np.abs(detector.detect(samples[1].image) - near).max()) > 0.01
+
+
 def test_detection_metrics_of_perfect_maps(samples: list) -> None:
     st = DetectionStats(threshold=0.5)
     for s in samples:

@@ -24,7 +24,9 @@ from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # 
 from turbinefit.train.labels import labelled_sample  # noqa: E402
 from turbinefit.train.net import (  # noqa: E402
     HeatmapNet,
+    add_fine,
     architecture,
+    fine_width,
     lift_to_input_scale_2,
     num_parameters,
     widen,
@@ -127,6 +129,56 @@ def test_widened_net_computes_the_same_heatmaps_and_can_learn() -> None:
     assert g is not None and float(g[:48, 64:96].abs().max()) > 0
     with pytest.raises(ValueError, match="narrow"):
         widen(state, (32, 48, 64, 112))
+
+
+def test_fine_branch_starts_adding_nothing_and_can_learn() -> None:
+    """add_fine(): the net with a fine branch gives the old heat-maps exactly, its branch
+    learns (gradients reach its zeroed output layer), widening keeps it, and it needs input
+    scale 2."""
+    torch.manual_seed(6)
+    old = HeatmapNet(input_scale=2)
+    x = torch.rand(2, 3, 240, 320)
+    with torch.no_grad():
+        for p in old.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    old.eval()
+    state = add_fine(old.state_dict(), 12)
+    assert fine_width(state) == 12 and fine_width(old.state_dict()) == 0
+    new = HeatmapNet(input_scale=2, fine=12)
+    new.load_state_dict(state)
+    new.eval()
+    assert new.fine is not None
+    last = new.fine[-1]
+    assert isinstance(last, torch.nn.Conv2d)
+    with torch.no_grad():
+        a, b = forward(old, x), forward(new, x)
+        assert torch.equal(a, b)
+        # a branch whose output layer is not zero changes the maps (the test can fail)
+        last.weight.add_(0.1)
+        assert float((forward(new, x) - a).abs().max()) > 0.01
+        last.weight.zero_()
+    new.train()
+    heatmap_loss(forward(new, x), torch.rand(2, 7, 120, 160), 2.0).backward()
+    g = last.weight.grad
+    assert g is not None and float(g.abs().max()) > 0
+    wide = widen(state, (40, 64, 96, 160))
+    assert fine_width(wide) == 12
+    assert torch.equal(wide["fine.0.0.weight"], state["fine.0.0.weight"])
+    with pytest.raises(ValueError, match="already"):
+        add_fine(state, 8)
+    with pytest.raises(ValueError, match="input_scale 2"):
+        HeatmapNet(input_scale=1, fine=8)
+
+
+def test_shipped_resize_graph_is_the_exported_one(tmp_path: Path) -> None:
+    """The package's resize graph is what export_resize_onnx writes (regenerate it with
+    that function if this fails)."""
+    from turbinefit.detect import RESIZE_MODEL, default_model_path
+    from turbinefit.train.trainer import export_resize_onnx
+
+    fresh = export_resize_onnx(tmp_path / RESIZE_MODEL)
+    shipped = default_model_path().with_name(RESIZE_MODEL)
+    assert fresh.read_bytes() == shipped.read_bytes()
 
 
 def test_loss_optimum_is_the_target() -> None:
@@ -290,8 +342,7 @@ def test_train_lifts_160_px_weights_to_320_px(tmp_path: Path,
 
     save_npz(HeatmapNet(input_scale=1), tmp_path / "old.npz")
     out = tmp_path / "lifted"
-    common = ["--images", "16", "--val-images", "0", "--epochs", "1", "--batch", "8",
-              "--workers", "1", "--quiet", "--data", str(tmp_path / "data"), "--max-steps", "1"]
+    common = _one_step_args(tmp_path)
     assert main(["train", "--out", str(out), "--init", str(tmp_path / "old.npz"),
                  "--input-scale", "2", *common]) == 0
     det = HeatmapDetector(out / "model.onnx", threads=1)
@@ -307,14 +358,19 @@ def test_train_lifts_160_px_weights_to_320_px(tmp_path: Path,
     assert not back.exists()
 
 
+def _one_step_args(tmp_path: Path) -> list[str]:
+    """`train` options of a one-step run on 16 renders in ``tmp_path/data``."""
+    return ["--images", "16", "--val-images", "0", "--epochs", "1", "--batch", "8",
+            "--workers", "1", "--quiet", "--data", str(tmp_path / "data"), "--max-steps", "1"]
+
+
 def test_train_widens_init_weights(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """--widths wider than the --init weights' starts a wider net from them; narrower ones
     and malformed widths are one clear error each (exit 2, nothing written)."""
     from turbinefit.train.trainer import load_npz, save_npz
 
     save_npz(HeatmapNet(input_scale=2), tmp_path / "narrow.npz")
-    common = ["--images", "16", "--val-images", "0", "--epochs", "1", "--batch", "8",
-              "--workers", "1", "--quiet", "--data", str(tmp_path / "data"), "--max-steps", "1"]
+    common = _one_step_args(tmp_path)
     out = tmp_path / "wide"
     assert main(["train", "--out", str(out), "--init", str(tmp_path / "narrow.npz"),
                  "--widths", "32,48,96,160", *common]) == 0
@@ -338,6 +394,31 @@ def test_train_widens_init_weights(tmp_path: Path, capsys: pytest.CaptureFixture
         err = capsys.readouterr().err.strip().splitlines()
         assert "--widths" in err[-1] and "Traceback" not in "\n".join(err)
     assert not narrower.exists()
+
+
+def test_train_adds_a_fine_branch(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--fine on --init weights without a branch adds one (the exported model runs and
+    says so); asking those weights for another branch width, or for none, is one clear
+    error (exit 2, nothing written)."""
+    from turbinefit.train.trainer import load_npz, save_npz
+
+    save_npz(HeatmapNet(input_scale=2), tmp_path / "plain.npz")
+    common = _one_step_args(tmp_path)
+    out = tmp_path / "fine"
+    assert main(["train", "--out", str(out), "--init", str(tmp_path / "plain.npz"),
+                 "--fine", "8", *common]) == 0
+    assert fine_width(load_npz(out / "weights.npz").state_dict()) == 8
+    det = HeatmapDetector(out / "model.onnx", threads=1)
+    assert det.detect(np.zeros((60, 80, 3), np.uint8)).shape == (7, 60, 80)
+    assert "fine 8" in det.info.description
+    capsys.readouterr()
+    for fine in ("4", "0"):
+        bad = tmp_path / f"bad{fine}"
+        assert main(["train", "--out", str(bad), "--init", str(out / "weights.npz"),
+                     "--fine", fine, *common]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "fine branch of 8 channels" in err[0]
+        assert not bad.exists()
 
 
 @pytest.mark.parametrize("bad", ["missing", "unknown_name", "weights"])

@@ -360,6 +360,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="channel widths of the net at 1/2, 1/4, 1/8, 1/16 of the heat-map "
                    "resolution (default: those of --init, else 32,48,64,112); --init weights "
                    "of a narrower net are widened so that training starts from their heat-maps")
+    t.add_argument("--fine", type=_whole_nonneg, default=None, metavar="C",
+                   help="channels of a fine branch that corrects the heat-maps at their own "
+                   "resolution from the full-resolution features (input scale 2; default: as "
+                   "--init, else none); --init weights without one get one that starts out "
+                   "adding nothing")
     t.add_argument("--max-steps", type=_positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -803,7 +808,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
                       pos_weight=args.pos_weight, channel_weights=args.channel_weights,
-                      widths=args.widths)
+                      widths=args.widths, fine=args.fine)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

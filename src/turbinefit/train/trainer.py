@@ -72,7 +72,9 @@ from turbinefit.train.net import (
     WIDTHS,
     HeatmapNet,
     Widths,
+    add_fine,
     architecture,
+    fine_width,
     lift_to_input_scale_2,
     num_parameters,
     widen,
@@ -86,7 +88,7 @@ OPSET = 17
 FLIP = True
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
-                "input_scale", "pos_weight", "channel_weights", "widths")
+                "input_scale", "pos_weight", "channel_weights", "widths", "fine")
 
 
 @dataclass
@@ -122,6 +124,9 @@ class TrainConfig:
             weights of a narrower net are widened first
             (:func:`~turbinefit.train.net.widen`: the wider net starts out computing the
             same heat-maps). None: those of ``init`` (or the default).
+        fine: channels of the net's fine branch at heat-map resolution (input scale 2
+            only; 0: none); ``init`` weights without one get one that starts out adding
+            nothing (:func:`~turbinefit.train.net.add_fine`). None: as ``init`` (or 0).
     """
 
     out_dir: Path
@@ -143,6 +148,7 @@ class TrainConfig:
     max_steps: int | None = None
     input_scale: int = IMAGE_SCALE
     widths: Widths | None = None
+    fine: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -160,6 +166,10 @@ class TrainConfig:
                                         or not all(w >= 1 for w in self.widths)):
             raise InputError(f"must be 4 channel counts >= 1, got {self.widths}",
                              field="widths")
+        if self.fine is not None and self.fine < 0:
+            raise InputError(f"must be >= 0, got {self.fine}", field="fine")
+        if self.fine and self.input_scale != 2:
+            raise InputError("a fine branch needs input scale 2", field="fine")
         cw = self.channel_weights
         if len(cw) != NUM_CHANNELS or not all(w >= 0 and math.isfinite(w) for w in cw) \
                 or not any(w > 0 for w in cw):
@@ -220,12 +230,15 @@ def heatmap_loss(logits: torch.Tensor, target: torch.Tensor, pos_weight: float,
 
 
 def load_npz(path: Path, input_scale: int | None = None,
-             widths: Widths | None = None) -> HeatmapNet:
-    """The net of a ``weights.npz``, of ``input_scale`` and ``widths`` (default: those of
-    the weights, read off their shapes by :func:`~turbinefit.train.net.architecture`).
+             widths: Widths | None = None, fine: int | None = None) -> HeatmapNet:
+    """The net of a ``weights.npz``, of ``input_scale``, ``widths`` and ``fine`` branch
+    (default: those of the weights, read off their shapes by
+    :func:`~turbinefit.train.net.architecture` and :func:`~turbinefit.train.net.fine_width`).
     Weights of input scale 1 are lifted to 2 by
-    :func:`~turbinefit.train.net.lift_to_input_scale_2` (2 cannot go back to 1), and
-    weights of a narrower net are widened by :func:`~turbinefit.train.net.widen`."""
+    :func:`~turbinefit.train.net.lift_to_input_scale_2` (2 cannot go back to 1), weights
+    of a narrower net are widened by :func:`~turbinefit.train.net.widen`, and weights
+    without a fine branch get one by :func:`~turbinefit.train.net.add_fine`; a fine branch
+    cannot be removed or resized."""
     try:
         with np.load(path) as z:
             state = {k: torch.from_numpy(z[k]) for k in z.files}
@@ -233,6 +246,7 @@ def load_npz(path: Path, input_scale: int | None = None,
         raise InputError(f"cannot read weights: {e}", path=path) from e
     try:
         have_widths, stem, have = architecture(state)
+        have_fine = fine_width(state)
     except KeyError as e:
         raise InputError(f"not weights of a HeatmapNet (no {e})", path=path) from None
     scale = input_scale or have
@@ -250,7 +264,15 @@ def load_npz(path: Path, input_scale: int | None = None,
             state = widen(state, widths)
         except ValueError as e:  # narrower than the weights
             raise InputError(str(e), path=path) from None
-    net = HeatmapNet(widths, stem, input_scale=scale)
+    fine = have_fine if fine is None else fine
+    if fine != have_fine:
+        if have_fine:
+            raise InputError(f"weights have a fine branch of {have_fine} channels; they "
+                             f"cannot start a net with {fine}", path=path)
+        if scale != 2:
+            raise InputError("a fine branch needs input scale 2", path=path)
+        state = add_fine(state, fine)
+    net = HeatmapNet(widths, stem, input_scale=scale, fine=fine)
     try:
         net.load_state_dict(state)
     except RuntimeError as e:
@@ -302,6 +324,26 @@ def export_onnx(net: HeatmapNet, path: Path, info: ModelInfo) -> Path:
         entry = model.metadata_props.add()
         entry.key, entry.value = k, v
     net.train(was_training)
+    return write_bytes_atomic(path, model.SerializeToString())
+
+
+def export_resize_onnx(path: Path, opset: int = 13) -> Path:
+    """Write the ONNX graph that :class:`~turbinefit.detect.HeatmapDetector` enlarges
+    heat-maps with (:data:`~turbinefit.detect.RESIZE_MODEL`, shipped in the package):
+    one ``Resize`` node, bilinear with pixel centres aligned (``half_pixel``), input ``x``
+    (1, 7, h, w) float32 and ``sizes`` (4,) int64, output ``y``. For enlargement this is
+    the bilinear filter of :func:`turbinefit.io.images.resize_maps` (Pillow), run on
+    onnxruntime's threads instead of one channel at a time."""
+    from onnx import TensorProto, helper
+
+    x = helper.make_tensor_value_info("x", TensorProto.FLOAT, [1, NUM_CHANNELS, "h", "w"])
+    sizes = helper.make_tensor_value_info("sizes", TensorProto.INT64, [4])
+    y = helper.make_tensor_value_info("y", TensorProto.FLOAT, [1, NUM_CHANNELS, "H", "W"])
+    node = helper.make_node("Resize", ["x", "", "", "sizes"], ["y"], mode="linear",
+                            coordinate_transformation_mode="half_pixel")
+    graph = helper.make_graph([node], "turbinefit_resize_maps", [x, sizes], [y])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)],
+                              producer_name="turbinefit")
     return write_bytes_atomic(path, model.SerializeToString())
 
 
@@ -450,9 +492,11 @@ def train(cfg: TrainConfig, progress: bool = True,
     if init is None and cfg.labels is not None:
         from turbinefit.detect import default_model_path
         init = default_model_path().with_suffix(".npz")
-    net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale, cfg.widths)
+    net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale, cfg.widths,
+                    cfg.fine)
            if init is not None
-           else HeatmapNet(cfg.widths or WIDTHS, input_scale=cfg.input_scale))
+           else HeatmapNet(cfg.widths or WIDTHS, input_scale=cfg.input_scale,
+                           fine=cfg.fine or 0))
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     scale = net.input_scale
     labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
@@ -561,7 +605,9 @@ def train(cfg: TrainConfig, progress: bool = True,
     if val is not None:
         _, final, (threshold, tip_threshold) = _calibrated_metrics(net, val, cfg.pos_weight, grid)
         log(f"held-out, final: {format_metrics(final)}")
-    desc = (f"HeatmapNet widths {architecture(net.state_dict())[0]}, {num_parameters(net)} params; "
+    fine = fine_width(net.state_dict())
+    desc = (f"HeatmapNet widths {architecture(net.state_dict())[0]}"
+            f"{f', fine {fine}' if fine else ''}, {num_parameters(net)} params; "
             f"{cfg.n_images} renders seed {cfg.seed}"
             f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
             f"{' from ' + Path(init).name if init is not None else ''}")
