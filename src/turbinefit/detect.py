@@ -42,6 +42,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +51,9 @@ from turbinefit.errors import InputError
 from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image, resize_maps
+
+if TYPE_CHECKING:
+    import onnxruntime as ort
 
 F32Array = NDArray[np.float32]
 
@@ -141,6 +145,20 @@ def _flag(text: str) -> bool:
     return text == "True"
 
 
+def _session_options(threads: int, spinning: bool) -> ort.SessionOptions:
+    """onnxruntime options: ``threads`` intra-op threads, quiet; with ``spinning`` False,
+    idle threads sleep instead of spinning (other work needs the cores)."""
+    import onnxruntime as ort
+
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
+    opts.inter_op_num_threads = 1
+    opts.log_severity_level = 3
+    if not spinning:
+        opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    return opts
+
+
 def default_model_path() -> Path:
     """The model shipped inside the package."""
     return Path(str(resources.files("turbinefit") / "models" / DEFAULT_MODEL))
@@ -179,14 +197,10 @@ class HeatmapDetector:
         self.path = Path(model) if model is not None else default_model_path()
         if not self.path.is_file():
             raise InputError("model file not found", path=self.path)
-        opts = ort.SessionOptions()
-        opts.intra_op_num_threads = int(threads or os.cpu_count() or 1)
-        opts.inter_op_num_threads = 1
-        opts.log_severity_level = 3
-        if not spinning:  # idle threads sleep instead of spinning: other work needs the cores
-            opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        n_threads = int(threads or os.cpu_count() or 1)
         try:
-            self.session = ort.InferenceSession(str(self.path), opts,
+            self.session = ort.InferenceSession(str(self.path),
+                                                _session_options(n_threads, spinning),
                                                 providers=["CPUExecutionProvider"])
         except Exception as e:  # onnxruntime raises its own (untyped) exceptions
             msg = str(e).splitlines()[0] if str(e) else type(e).__name__
@@ -209,14 +223,9 @@ class HeatmapDetector:
                              f"dynamic height and width", path=self.path)
         self._input = inputs[0].name
         self.flip = self.info.flip if flip is None else bool(flip)
-        ropts = ort.SessionOptions()
-        ropts.intra_op_num_threads = opts.intra_op_num_threads
-        ropts.inter_op_num_threads = 1
-        ropts.log_severity_level = 3
-        # its threads must not spin after a run: they would take the net's cores
-        ropts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        # the resize's threads must not spin after a run: they would take the net's cores
         resize = default_model_path().with_name(RESIZE_MODEL)
-        self._resize = ort.InferenceSession(str(resize), ropts,
+        self._resize = ort.InferenceSession(str(resize), _session_options(n_threads, False),
                                             providers=["CPUExecutionProvider"])
 
     def _prepare(self, image: NDArray[np.uint8]) -> tuple[F32Array, tuple[int, int]]:

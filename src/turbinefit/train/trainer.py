@@ -269,9 +269,10 @@ def load_npz(path: Path, input_scale: int | None = None,
         if have_fine:
             raise InputError(f"weights have a fine branch of {have_fine} channels; they "
                              f"cannot start a net with {fine}", path=path)
-        if scale != 2:
-            raise InputError("a fine branch needs input scale 2", path=path)
-        state = add_fine(state, fine)
+        try:
+            state = add_fine(state, fine)
+        except ValueError as e:  # the net's own check: a fine branch needs input scale 2
+            raise InputError(str(e), path=path) from None
     net = HeatmapNet(widths, stem, input_scale=scale, fine=fine)
     try:
         net.load_state_dict(state)
@@ -605,8 +606,9 @@ def train(cfg: TrainConfig, progress: bool = True,
     if val is not None:
         _, final, (threshold, tip_threshold) = _calibrated_metrics(net, val, cfg.pos_weight, grid)
         log(f"held-out, final: {format_metrics(final)}")
-    fine = fine_width(net.state_dict())
-    desc = (f"HeatmapNet widths {architecture(net.state_dict())[0]}"
+    state = net.state_dict()
+    fine = fine_width(state)
+    desc = (f"HeatmapNet widths {architecture(state)[0]}"
             f"{f', fine {fine}' if fine else ''}, {num_parameters(net)} params; "
             f"{cfg.n_images} renders seed {cfg.seed}"
             f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
