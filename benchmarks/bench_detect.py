@@ -19,7 +19,8 @@
   ``--points interp --robust cauchy``; mean position / orientation / model-point errors
   and their ratios: to the best ideal fit (the defaults) and to the ideal fit with the
   same options; over all flights, and over those the detected-map options were not
-  chosen on (seeds other than 0-5).
+  chosen on (seeds other than 0-5). For a model with a tip shift (the shipped one), the
+  tuned fit also without it (``--tip-shift 0``): what the calibrated shift gains.
 
 Usage::
 
@@ -87,20 +88,27 @@ def print_heldout(m: dict[str, float], unit: str) -> None:
           f"{m['tips_recall_short']:.1%}, on longer blades {m['tips_recall_long']:.1%} ({unit})")
     print(f"  IoU        tower {m['iou_tower']:.2f}, nacelle {m['iou_nacelle']:.2f}, blade "
           f"{m['iou_blade']:.2f}")
-    print(f"  biases     tips along the blade {m['tip_bias_px']:+.2f} px, tower top towards the "
+    print(f"  biases     tips along the blade {m['tip_bias_px']:+.2f} px (the tip shift still "
+          f"to make, tips within 10 px: {m['tip_shift_px']:+.2f} px), tower top towards the "
           f"base {m['tower_top_bias_px']:+.2f} px ({unit})")
 
 
 def summarise(rows: list[dict]) -> dict[str, dict]:
     """Mean errors of fit rows, their ratios to the ideal fit with the default options, and
     the ratio of the detected to the ideal heat-maps both fitted with DETECTED_OPTIONS."""
+    kinds = [k for k in ("ideal", "ideal_tuned", "detected", "detected_tuned",
+                         "detected_tuned_unshifted") if k in rows[0]]
     mean = {k: {q: statistics.mean(r[k][q] for r in rows)
                 for q in ("position_m", "orientation_deg", "model_point_m")}
-            for k in ("ideal", "ideal_tuned", "detected", "detected_tuned")}
+            for k in kinds}
     ratio = {k: {q: mean[k][q] / mean["ideal"][q] for q in mean["ideal"]}
-             for k in ("detected", "detected_tuned")}
+             for k in kinds if k.startswith("detected")}
     same = {q: mean["detected_tuned"][q] / mean["ideal_tuned"][q] for q in mean["ideal"]}
-    return {"mean": mean, "ratio": ratio, "ratio_same_options": same}
+    out = {"mean": mean, "ratio": ratio, "ratio_same_options": same}
+    if "detected_tuned_unshifted" in mean:
+        out["ratio_same_options_unshifted"] = {
+            q: mean["detected_tuned_unshifted"][q] / mean["ideal_tuned"][q] for q in mean["ideal"]}
+    return out
 
 
 def simulate(seed: int, n: int) -> Path:
@@ -167,7 +175,8 @@ def main() -> None:
     RESULTS.mkdir(exist_ok=True)
     det = HeatmapDetector(args.model)
     print(f"model {det.path} (thresholds {det.info.threshold:.2f}, tips {det.info.tip_threshold:.2f}, "
-          f"input {det.info.input_width} px, flip averaging {'on' if det.flip else 'off'})")
+          f"input {det.info.input_width} px, flip averaging {'on' if det.flip else 'off'}, "
+          f"tip shift {det.tip_shift:g} px)")
 
     m_input, m_grid = heldout_metrics(det, args.heldout)
     size = f"{det.info.input_width}x{det.info.input_height}"
@@ -190,8 +199,12 @@ def main() -> None:
         model = ["--model", str(args.model)] if args.model else []
         detected = fit(flight, ["--from-images", *model])
         tuned = fit(flight, ["--from-images", *model, *DETECTED_OPTIONS])
-        rows.append({"seed": seed, "ideal": ideal, "ideal_tuned": ideal_tuned,
-                     "detected": detected, "detected_tuned": tuned})
+        row = {"seed": seed, "ideal": ideal, "ideal_tuned": ideal_tuned,
+               "detected": detected, "detected_tuned": tuned}
+        if det.tip_shift:
+            row["detected_tuned_unshifted"] = fit(
+                flight, ["--from-images", *model, *DETECTED_OPTIONS, "--tip-shift", "0"])
+        rows.append(row)
         print(f"seed {seed}: initial {ideal['before_position_m']:.2f} m; ideal heat-maps "
               f"{ideal['position_m']:.3f} m / {ideal['orientation_deg']:.3f} deg / "
               f"{ideal['model_point_m']:.3f} m (with {' '.join(DETECTED_OPTIONS)} "
@@ -211,10 +224,13 @@ def main() -> None:
                      + ", ".join(f"{v:.2f}x" for v in sm["ratio"][k].values())))
         print("  detected_tuned / ideal_tuned (same options): "
               + ", ".join(f"{q} {v:.2f}x" for q, v in sm["ratio_same_options"].items()))
+        if "ratio_same_options_unshifted" in sm:
+            print("  the same without the tip shift: " + ", ".join(
+                f"{q} {v:.2f}x" for q, v in sm["ratio_same_options_unshifted"].items()))
     RESULTS.mkdir(exist_ok=True)
     out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
            "model": str(det.path), "flip": det.flip, "threshold": det.info.threshold,
-           "tip_threshold": det.info.tip_threshold,
+           "tip_threshold": det.info.tip_threshold, "tip_shift_px": det.tip_shift,
            "heldout": {"n": args.heldout, "seed": HELDOUT_SEED, "px": "input", **m_input},
            "heldout_heatmap_px": {"n": args.heldout, "seed": HELDOUT_SEED, **m_grid},
            "speed": sp,

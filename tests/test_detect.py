@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from turbinefit.cli import main
-from turbinefit.detect import HeatmapDetector, ModelInfo, default_model_path, model_input_size
+from turbinefit.detect import (
+    TIP_SHIFT_TAPER_PX,
+    HeatmapDetector,
+    ModelInfo,
+    default_model_path,
+    model_input_size,
+    shift_tips,
+)
 from turbinefit.eval.detection import DetectionStats, peak
 from turbinefit.io.images import read_image, write_png
 from turbinefit.sim.dataset import DatasetSpec, render_sample
@@ -103,6 +110,53 @@ def test_maps_are_resized_as_pillow_resizes_them(detector: HeatmapDetector,
     assert float(np.abs(detector.detect(samples[1].image) - near).max()) > 0.01
 
 
+def test_shift_tips_moves_each_blob_along_its_blade() -> None:
+    from turbinefit.sim.render import render_keypoint_heatmaps
+
+    hub = np.array([60.0, 50.0])
+    dirs = np.array([[0.0, -1.0], [0.8, 0.6], [-0.6, 0.8]])
+    tips = hub + 30.3 * dirs
+    uv = np.concatenate([np.zeros((2, 2)), hub[None], tips])
+    tip = render_keypoint_heatmaps(120, 160, [uv], [np.array([False] * 3 + [True] * 3)],
+                                   sigma_px=1.5)[3].astype(np.float32)
+    for shift in (0.7, -0.4):
+        out = shift_tips(tip, (hub[0], hub[1]), shift, 10.0)
+        assert out.dtype == np.float32 and out.min() >= 0 and out.max() <= 1
+        for t, d in zip(tips, dirs, strict=True):
+            win = np.zeros_like(out)
+            i, j = int(np.rint(t[1])), int(np.rint(t[0]))
+            win[i - 4:i + 5, j - 4:j + 5] = out[i - 4:i + 5, j - 4:j + 5]
+            u, v, val = peak(win)
+            np.testing.assert_allclose([u, v], t + shift * d, atol=0.03)
+            assert val > 0.95  # cubic resampling keeps the peak
+    np.testing.assert_array_equal(shift_tips(tip, (60.0, 50.0), 0.0, 10.0), tip)
+    # a blob on the hub stays there (the shift tapers to 0 at the hub)
+    blob = render_keypoint_heatmaps(120, 160, [np.tile(hub, (6, 1))],
+                                    [np.array([False] * 3 + [True] + [False] * 2)],
+                                    sigma_px=1.5)[3].astype(np.float32)
+    u, v, _ = peak(shift_tips(blob, (60.0, 50.0), 0.7, 10.0))
+    assert abs(u - 60.0) < 0.01 and abs(v - 50.0) < 0.01
+    assert shift_tips(np.zeros((8, 8), np.float32), (4.0, 4.0), 0.7, 10.0).max() == 0.0
+
+
+def test_detector_shifts_the_tip_channel_by_the_calibrated_amount(
+        detector: HeatmapDetector, samples: list) -> None:
+    info = detector.info
+    assert detector.tip_shift == info.tip_shift_px and 0 < info.tip_shift_px < 2
+    plain = HeatmapDetector(threads=1, tip_shift=0)
+    for s in samples[:3]:
+        a, b = detector.detect_small(s.image), plain.detect_small(s.image)
+        others = [0, 1, 2, 4, 5, 6]
+        np.testing.assert_array_equal(a[others], b[others])
+        i, j = np.unravel_index(int(np.argmax(b[2])), b[2].shape)
+        want = shift_tips(b[3], (float(j), float(i)), info.tip_shift_px / info.output_scale,
+                          TIP_SHIFT_TAPER_PX / info.output_scale)
+        np.testing.assert_allclose(a[3], want, atol=1e-6)
+        assert np.abs(a[3] - b[3]).max() > 1e-3
+    with pytest.raises(ValueError, match="tip shift"):
+        HeatmapDetector(threads=1, tip_shift=TIP_SHIFT_TAPER_PX)
+
+
 def test_detection_metrics_of_perfect_maps(samples: list) -> None:
     st = DetectionStats(threshold=0.5)
     for s in samples:
@@ -145,6 +199,13 @@ def test_detect_cli(tmp_path: Path, samples: list, detector: HeatmapDetector,
                                HeatmapDetector(threads=1, flip=False).detect(img), atol=1e-5)
     np.testing.assert_allclose(np.load(out / "img0.npy"), detector.detect(img), atol=1e-5)
     assert np.abs(np.load(plain / "img0.npy") - np.load(out / "img0.npy")).max() > 1e-3
+    # --tip-shift 0: the net's own tip channel, as HeatmapDetector(tip_shift=0)
+    own = tmp_path / "own"
+    assert main(["detect", str(photos / "img0.png"), "--out", str(own), "--quiet",
+                 "--tip-shift", "0"]) == 0
+    np.testing.assert_allclose(np.load(own / "img0.npy"),
+                               HeatmapDetector(threads=1, tip_shift=0).detect(img), atol=1e-5)
+    assert np.abs(np.load(own / "img0.npy")[3] - np.load(out / "img0.npy")[3]).max() > 1e-3
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:
@@ -212,6 +273,10 @@ def test_detect_bad_input(tmp_path: Path, samples: list, capsys: pytest.CaptureF
         _tiny_model(tmp_path / "flip.onnx", meta={"turbinefit.flip": "yes"}).name:
             "turbinefit.flip='yes' is not a valid flag",
         _tiny_model(tmp_path / "fixed.onnx", fixed=True).name: "fixed image size",
+        _tiny_model(tmp_path / "shift.onnx", meta={"turbinefit.tip_shift_px": "25"}).name:
+            "out of range",
+        _tiny_model(tmp_path / "shiftx.onnx", meta={"turbinefit.tip_shift_px": "far"}).name:
+            "turbinefit.tip_shift_px='far' is not a valid float",
         "missing.onnx": "model file not found",
     }
     for name, words in cases.items():

@@ -97,6 +97,33 @@ def test_px_scale_reports_distances_in_input_pixels() -> None:
     assert p["tips_recall"] == 0.0 and p["tips_precision"] == 0.0
 
 
+def test_tip_shift_is_the_mean_inboard_offset_of_tips_within_10_px() -> None:
+    """Tips 3 grid px inboard at px_scale 2 are 6 input px off: beyond the 5 px match
+    (recall 0) but within the 10 px calibration radius, so the shift is +6 px; it is 0
+    from fewer than 20 matches and leaves blades under 20 px out (the grid's 12 px)."""
+    uv = _TURBINE_UV
+    vis = np.ones(6, bool)
+    target = _maps(uv, vis)
+    pred = _maps(_tips_inboard(uv, 3.0), vis)
+    photo, few, grid = (DetectionStats(threshold=0.5, px_scale=2.0),
+                        DetectionStats(threshold=0.5, px_scale=2.0), DetectionStats(threshold=0.5))
+    for k in range(7):  # 21 tips
+        photo.add(pred, target, uv, vis)
+        grid.add(pred, target, uv, vis)
+        if k < 6:
+            few.add(pred, target, uv, vis)
+    p = photo.summary()
+    assert p["tips_recall"] == 0.0
+    assert p["tip_shift_px"] == pytest.approx(6.0, abs=0.2)
+    assert few.summary()["tip_shift_px"] == 0.0
+    assert grid.summary()["tip_shift_px"] == 0.0
+    # outboard tips give a negative shift
+    out = DetectionStats(threshold=0.5, px_scale=2.0)
+    for _ in range(7):
+        out.add(_maps(_tips_inboard(uv, -1.0), vis), target, uv, vis)
+    assert out.summary()["tip_shift_px"] == pytest.approx(-2.0, abs=0.1)
+
+
 def test_recall_in_sight_leaves_hidden_tips_out() -> None:
     """Two of three tips found; the missed one is hidden (behind the tower, say): recall
     2/3 over the tips in the frame, 1 over the tips in sight; without in_sight, NaN."""

@@ -34,6 +34,7 @@ from turbinefit.train.net import (  # noqa: E402
 from turbinefit.train.trainer import (  # noqa: E402
     TrainConfig,
     _jitter,
+    evaluate,
     export_onnx,
     forward,
     heatmap_loss,
@@ -262,6 +263,40 @@ def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int, flip: bool) -> N
         assert det.detect(img).shape == (7, h * scale, w * scale)
 
 
+def test_evaluate_calibrates_the_tip_shift_in_input_pixels() -> None:
+    """A stand-in net of input scale 2 whose tip blobs sit 3 heat-map px inboard: the
+    calibrated shift is +6 px of its input (what ModelInfo.tip_shift_px holds), though the
+    other distances stay in heat-map pixels."""
+    from turbinefit.sim.render import render_keypoint_heatmaps
+
+    uv = np.array([[80, 100], [80, 40], [84, 40], [84, 26], [72, 47], [96, 47]], float)
+    moved = uv.copy()
+    for i in (3, 4, 5):
+        d = uv[2] - uv[i]
+        moved[i] += 3.0 * d / np.hypot(*d)
+    vis = np.ones(6, bool)
+    target = render_keypoint_heatmaps(120, 160, [uv], [vis], sigma_px=1.5)
+    pred = render_keypoint_heatmaps(120, 160, [moved], [vis], sigma_px=1.5)
+    logit = torch.logit(torch.from_numpy(pred).float().clamp(1e-4, 1 - 1e-4))
+
+    class StandIn(torch.nn.Module):
+        input_scale = 2
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            out = torch.full((len(x), 7, x.shape[-2] // 2, x.shape[-1] // 2), -9.0)
+            out[:, :, :120, :160] = logit
+            return out
+
+    n = 8
+    _, summaries = evaluate(StandIn(), np.zeros((n, 240, 320, 3), np.uint8),  # type: ignore[arg-type]
+                            np.repeat((target * 255).astype(np.uint8)[None], n, axis=0),
+                            np.repeat(uv[None], n, axis=0), np.repeat(vis[None], n, axis=0),
+                            2.0, (0.5,), flip=False)
+    m = summaries[0.5]
+    assert m["tip_shift_px"] == pytest.approx(6.0, abs=0.2)
+    assert m["tip_bias_px"] == pytest.approx(-3.0, abs=0.1)  # heat-map px
+
+
 def test_jitter_keeps_range() -> None:
     x = torch.rand(4, 3, 8, 8)
     y = _jitter(x)
@@ -318,6 +353,8 @@ def test_train_cli_smoke_resume_and_fine_tune(tmp_path: Path, capsys: pytest.Cap
     assert len((out / "history.csv").read_text().splitlines()) == 3
     det = HeatmapDetector(out / "model.onnx", threads=1)
     assert det.detect(np.zeros((60, 80, 3), np.uint8)).shape == (7, 60, 80)
+    meta = dict(det.session.get_modelmeta().custom_metadata_map)
+    assert abs(float(meta["turbinefit.tip_shift_px"])) < 20  # calibrated at export
     # a resumed run with other settings is refused
     assert main([*args[:-2], "--data", str(tmp_path / "data"), "--lr", "0.01"]) == 2
     # fine-tuning on COCO-labelled photos from these weights

@@ -63,6 +63,17 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _tip_shift(text: str) -> float:
+    from turbinefit.detect import TIP_SHIFT_TAPER_PX
+
+    v = _float(text)
+    if not (math.isfinite(v) and abs(v) < TIP_SHIFT_TAPER_PX):
+        raise argparse.ArgumentTypeError(
+            f"must be a number of pixels between -{TIP_SHIFT_TAPER_PX:g} and "
+            f"{TIP_SHIFT_TAPER_PX:g}, got {text!r}")
+    return v
+
+
 def _channel_weights(text: str) -> tuple[float, ...]:
     """Seven comma-separated non-negative numbers (one loss weight per heat-map channel)."""
     try:
@@ -384,7 +395,7 @@ def _add_flight_job_options(parser: argparse.ArgumentParser, dflt: Any, presets:
 
 
 def _add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
-    """--from-images, --model, --no-flip, --no-plots (``fit`` and ``track``)."""
+    """--from-images, --model, --no-flip, --tip-shift, --no-plots (``fit`` and ``track``)."""
     parser.add_argument("--from-images", action="store_true", default=None,
                         help=f"{what} even if heatmaps/ exists (default: only when heatmaps/ "
                         "is absent)")
@@ -395,11 +406,17 @@ def _add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
 
 
 def _add_flip_option(parser: argparse.ArgumentParser) -> None:
-    """--no-flip: args.flip is False when given, else None (the model's metadata decides)."""
+    """--no-flip and --tip-shift: args.flip is False when given, else None; args.tip_shift
+    a number when given, else None (the model's metadata decides both)."""
     parser.add_argument("--no-flip", dest="flip", action="store_false", default=None,
                         help="run the CNN once per photo instead of averaging its maps with "
                         "those of the mirror image (faster, less accurate; default: as the "
                         "model's metadata says, flip averaging for the shipped model)")
+    parser.add_argument("--tip-shift", type=_tip_shift, default=None, metavar="PX",
+                        help="move the blade-tip heat-map this many pixels (at the model's "
+                        "input width) outward from the detected hub, undoing the net's "
+                        "inboard bias; 0 keeps the net's own (default: the model's "
+                        "calibrated value, 0.709 for the shipped model)")
 
 
 def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any, batch: bool = True) -> None:
@@ -510,7 +527,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
                             overwrite=args.overwrite, progress=progress,
                             config_path=args.config, from_images=args.from_images,
                             model=args.model, detect_progress=not args.quiet,
-                            flip=args.flip)
+                            flip=args.flip, tip_shift=args.tip_shift)
     finally:
         if bar is not None:
             bar.close()
@@ -654,7 +671,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         report = track_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
                               overwrite=args.overwrite, progress=progress,
                               config_path=args.config, from_images=args.from_images,
-                              model=args.model, flip=args.flip)
+                              model=args.model, flip=args.flip, tip_shift=args.tip_shift)
     finally:
         if bar is not None:
             bar.close()
@@ -754,7 +771,8 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     from turbinefit.pipeline import detect_images
 
     rep = detect_images(args.inputs, args.out_dir, args.model, overwrite=args.overwrite,
-                        progress=not args.quiet, threads=args.threads, flip=args.flip)
+                        progress=not args.quiet, threads=args.threads, flip=args.flip,
+                        tip_shift=args.tip_shift)
     if not args.quiet:
         print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
               f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
@@ -767,7 +785,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     rep = evaluate_labels(args.labels, args.images_dir, args.model, out=args.out,
                           overwrite=args.overwrite, match_px=args.match_px,
-                          progress=not args.quiet, threads=args.threads, flip=args.flip)
+                          progress=not args.quiet, threads=args.threads, flip=args.flip,
+                          tip_shift=args.tip_shift)
     m = rep.summary
     print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
           f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}); distances in "

@@ -15,7 +15,15 @@ package, :func:`default_model_path`) on RGB photos of any size:
    augmentation: the seven channels are symmetric under a left-right flip; twice the
    work, tips and lines found more often and more precisely, and the model's thresholds
    are calibrated on such means);
-3. the padding is cut off and the maps are resized back to the photo's own size
+3. for a model whose metadata has a ``tip_shift_px`` (the shipped one and those
+   ``turbinefit train`` writes), the blade-tip channel is moved that far outward from the
+   detected hub (:func:`shift_tips`). The net puts tip blobs on average a little inboard
+   of the true tips (a tapered blade's last metres are thinner than a pixel: the net
+   sees the blade end before the tip), and a fit over many keyframes adds such a bias up
+   into the turbine's size and the drone's track; the shift is calibrated at export on
+   held-out renders (:class:`turbinefit.eval.detection.DetectionStats`,
+   ``tip_shift_px``) and is skipped where no hub is detected;
+4. the padding is cut off and the maps are resized back to the photo's own size
    (bilinear, pixel centres aligned), float32 (7, H, W). Enlarging runs on onnxruntime
    (a one-node graph shipped as :data:`RESIZE_MODEL`, written by
    :func:`turbinefit.train.trainer.export_resize_onnx`: the same filter as Pillow's, on
@@ -46,9 +54,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from turbinefit.errors import InputError
-from turbinefit.heatmaps import NUM_CHANNELS
+from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image, resize_maps
 
@@ -63,6 +72,13 @@ DEFAULT_MODEL = "heatmap_cnn.onnx"
 RESIZE_MODEL = "resize_maps.onnx"
 #: Oldest and newest ONNX opsets turbinefit's models are exported with / accepted at.
 MIN_OPSET, MAX_OPSET = 13, 21
+
+HUB, TIP = CHANNEL_NAMES.index("point_hub"), CHANNEL_NAMES.index("point_blade_tip")
+
+#: Radius [px at the model's input width] around the hub within which :func:`shift_tips`
+#: tapers the tip shift to zero (tips that close to the hub are of far, tiny turbines,
+#: where the net's blobs of hub and tips merge).
+TIP_SHIFT_TAPER_PX = 20.0
 
 #: Overlay colour (RGB) of each channel.
 CHANNEL_COLOURS = np.array([
@@ -94,6 +110,10 @@ class ModelInfo:
             the best F1 of tip recall and precision within 5 px).
         flip: detect on the photo and its mirror image and average the maps (the
             thresholds were calibrated so); False for models written before this field.
+        tip_shift_px: distance [px at the input width] the tip channel is moved outward
+            from the detected hub (:func:`shift_tips`; calibrated on held-out renders:
+            minus the mean offset of the net's tip peaks along the blade); 0 (no shift)
+            for models written before this field.
         opset: ONNX opset of the file.
         description: how it was trained.
     """
@@ -106,6 +126,7 @@ class ModelInfo:
     threshold: float = 0.3
     tip_threshold: float = 0.3
     flip: bool = False
+    tip_shift_px: float = 0.0
     opset: int = 17
     description: str = ""
 
@@ -117,7 +138,8 @@ class ModelInfo:
         kw: dict[str, object] = {}
         for name, typ in (("input_width", int), ("input_height", int), ("stride", int),
                           ("output_scale", int), ("sigma_px", float), ("threshold", float),
-                          ("tip_threshold", float), ("flip", _flag), ("opset", int),
+                          ("tip_threshold", float), ("flip", _flag),
+                          ("tip_shift_px", float), ("opset", int),
                           ("description", str)):
             key = f"turbinefit.{name}"
             if key not in meta:
@@ -130,6 +152,7 @@ class ModelInfo:
                                  path=path) from None
         info = ModelInfo(**kw)  # type: ignore[arg-type]
         if (info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0
+                or not abs(info.tip_shift_px) < TIP_SHIFT_TAPER_PX
                 or info.output_scale not in (1, 2) or info.stride % info.output_scale
                 or info.input_width % info.output_scale):
             raise InputError(f"model metadata out of range: {info}", path=path)
@@ -184,6 +207,9 @@ class HeatmapDetector:
         flip: average the maps of the photo and of its mirror image; None = as the
             model's metadata says (:attr:`ModelInfo.flip`). False halves the work at some
             cost in accuracy (the thresholds of a ``flip`` model were calibrated with it).
+        tip_shift: px at the model's input width the tip channel is moved outward from
+            the hub (:func:`shift_tips`); None = the model's calibrated
+            :attr:`ModelInfo.tip_shift_px`; 0 = the net's own tip channel.
 
     Raises:
         InputError: naming the file if it is missing, not ONNX, of an unsupported opset or
@@ -191,7 +217,8 @@ class HeatmapDetector:
     """
 
     def __init__(self, model: StrPath | None = None, threads: int | None = None, *,
-                 spinning: bool = True, flip: bool | None = None) -> None:
+                 spinning: bool = True, flip: bool | None = None,
+                 tip_shift: float | None = None) -> None:
         import onnxruntime as ort
 
         self.path = Path(model) if model is not None else default_model_path()
@@ -223,6 +250,10 @@ class HeatmapDetector:
                              f"dynamic height and width", path=self.path)
         self._input = inputs[0].name
         self.flip = self.info.flip if flip is None else bool(flip)
+        self.tip_shift = self.info.tip_shift_px if tip_shift is None else float(tip_shift)
+        if not (math.isfinite(self.tip_shift) and abs(self.tip_shift) < TIP_SHIFT_TAPER_PX):
+            raise ValueError(f"tip shift {self.tip_shift} px is outside "
+                             f"(-{TIP_SHIFT_TAPER_PX:g}, {TIP_SHIFT_TAPER_PX:g})")
         # the resize's threads must not spin after a run: they would take the net's cores
         resize = default_model_path().with_name(RESIZE_MODEL)
         self._resize = ort.InferenceSession(str(resize), _session_options(n_threads, False),
@@ -245,8 +276,14 @@ class HeatmapDetector:
         x, (mw, mh) = self._prepare(image)
         s = self.info.output_scale
         out = self.session.run(None, {self._input: x})[0][:, :, :mh // s, :mw // s]
-        maps = 0.5 * (out[0] + out[1][:, :, ::-1]) if self.flip else out[0]
-        return np.ascontiguousarray(maps, dtype=np.float32)
+        maps = np.ascontiguousarray(0.5 * (out[0] + out[1][:, :, ::-1]) if self.flip
+                                    else out[0], dtype=np.float32)
+        if self.tip_shift:
+            hub = np.unravel_index(int(np.argmax(maps[HUB])), maps[HUB].shape)
+            if maps[HUB][hub] > self.info.threshold:
+                maps[TIP] = shift_tips(maps[TIP], (float(hub[1]), float(hub[0])),
+                                       self.tip_shift / s, TIP_SHIFT_TAPER_PX / s)
+        return maps
 
     def detect(self, image: NDArray[np.uint8], size: tuple[int, int] | None = None) -> F32Array:
         """Heat-maps (7, H, W) float32 in [0, 1] of one RGB uint8 photo (H, W, 3).
@@ -268,6 +305,38 @@ class HeatmapDetector:
             maps = resize_maps(small, ow, oh)
         np.clip(maps, 0.0, 1.0, out=maps)
         return maps
+
+
+def shift_tips(tip: F32Array, hub_uv: tuple[float, float], shift: float, taper: float
+               ) -> F32Array:
+    """The blade-tip channel (h, w) with its content moved ``shift`` px outward, radially
+    from the hub at pixel ``hub_uv`` = (u, v) (inward if negative): a blob at distance r
+    from the hub moves to r + shift, so each tip moves along its blade's image direction.
+    Within ``taper`` px of the hub the displacement falls linearly to zero (r' = r (1 +
+    shift / taper) there; continuous and one-to-one for ``|shift| < taper``).
+
+    Cubic-spline resampling (bilinear would flatten a 1.5 px blob's peak by ~7 % at a
+    half-pixel shift), clipped to [0, 1], over the box around the channel's values above
+    1e-3 (the rest, below that, is kept as it is): a fraction of a millisecond.
+    """
+    out = tip.copy()
+    ii, jj = np.nonzero(tip > 1e-3)
+    if len(ii) == 0 or shift == 0:
+        return out
+    h, w = tip.shape
+    m = math.ceil(abs(shift)) + 3
+    i0, i1 = max(int(ii.min()) - m, 0), min(int(ii.max()) + m + 1, h)
+    j0, j1 = max(int(jj.min()) - m, 0), min(int(jj.max()) + m + 1, w)
+    ry, rx = np.mgrid[i0:i1, j0:j1].astype(np.float32)
+    rx -= np.float32(hub_uv[0])
+    ry -= np.float32(hub_uv[1])
+    r = np.hypot(rx, ry)
+    # the source of the pixel at r is at r - shift min(1, r / taper): a factor on (rx, ry)
+    f = 1.0 - np.float32(shift) * np.minimum(np.float32(1.0 / taper), 1.0 / np.maximum(r, 1e-6))
+    coords = np.stack([np.float32(hub_uv[1] - i0) + ry * f, np.float32(hub_uv[0] - j0) + rx * f])
+    box = ndimage.map_coordinates(tip[i0:i1, j0:j1], coords, order=3, mode="constant", cval=0.0)
+    out[i0:i1, j0:j1] = np.clip(box, 0.0, 1.0)
+    return out
 
 
 def overlay(image: NDArray[np.uint8], maps: F32Array) -> NDArray[np.uint8]:

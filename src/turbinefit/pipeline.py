@@ -189,6 +189,7 @@ def fit_folder(
     model: str | os.PathLike[str] | None = None,
     detect_progress: bool = False,
     flip: bool | None = None,
+    tip_shift: float | None = None,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -205,7 +206,8 @@ def fit_folder(
 
     Heat-maps come from ``flight_dir/heatmaps/``, or are detected from the photos in
     ``flight_dir/images/`` (:func:`image_heatmap_source`, ONNX ``model`` or the shipped
-    one) when ``from_images`` is True, or when it is None and the flight has photos but
+    one; ``flip`` and ``tip_shift`` as :class:`~turbinefit.detect.HeatmapDetector` takes
+    them) when ``from_images`` is True, or when it is None and the flight has photos but
     no ``heatmaps/``. Nothing is written into ``flight_dir``.
     """
     cfg = config or FitConfig()
@@ -217,7 +219,8 @@ def fit_folder(
     t0 = time.perf_counter()
     if from_images is None:
         from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
-    source = (image_heatmap_source(flight_dir, model, progress=detect_progress, flip=flip)
+    source = (image_heatmap_source(flight_dir, model, progress=detect_progress, flip=flip,
+                                   tip_shift=tip_shift)
               if from_images else None)
     flight = read_flight(flight_dir, heatmaps=source)
     timings["load"] = time.perf_counter() - t0
@@ -390,8 +393,8 @@ def _photo_size_error(img: np.ndarray, camera: PinholeCamera) -> str | None:
 def image_heatmap_source(flight_dir: str | os.PathLike[str],
                          model: str | os.PathLike[str] | None = None,
                          width: int = FIT_DETECT_WIDTH, progress: bool = False,
-                         threads: int | None = None, flip: bool | None = None
-                         ) -> HeatmapSource:
+                         threads: int | None = None, flip: bool | None = None,
+                         tip_shift: float | None = None) -> HeatmapSource:
     """A :data:`~turbinefit.io.flight_folder.HeatmapSource` detecting the heat-maps of
     every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped).
 
@@ -408,7 +411,7 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
 
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
-        detector = HeatmapDetector(model, threads, flip=flip)
+        detector = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
         cam = detection_camera(camera, width)
         maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
         for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
@@ -448,7 +451,7 @@ class DetectReport:
 def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                   model: str | os.PathLike[str] | None = None, *, overwrite: bool = False,
                   progress: bool = False, threads: int | None = None,
-                  flip: bool | None = None) -> DetectReport:
+                  flip: bool | None = None, tip_shift: float | None = None) -> DetectReport:
     """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
     photo, ``<stem>.npy`` (float32 (7, H, W) at the photo's size, channels of
     :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
@@ -470,7 +473,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
         check_image(p)
     _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
     check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
-    detector = HeatmapDetector(model, threads, flip=flip)
+    detector = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
     t0 = time.perf_counter()
     t_det = 0.0
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
@@ -509,7 +512,8 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
                     model: str | os.PathLike[str] | None = None, *,
                     out: str | os.PathLike[str] | None = None, overwrite: bool = False,
                     match_px: float = 5.0, progress: bool = False,
-                    threads: int | None = None, flip: bool | None = None) -> EvaluateReport:
+                    threads: int | None = None, flip: bool | None = None,
+                    tip_shift: float | None = None) -> EvaluateReport:
     """Detection metrics of the ONNX ``model`` (default: shipped) on photos labelled with
     COCO keypoints (:func:`turbinefit.io.coco.read_coco_keypoints`; any number of
     turbines per photo, photos without any are negatives), and, with ``out``, a JSON
@@ -544,7 +548,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("is a folder; the report is a JSON file", path=out_path)
         if out_path.exists() and not overwrite:
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
-    det = HeatmapDetector(model, threads, flip=flip)
+    det = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
     info = det.info
     stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
@@ -643,6 +647,7 @@ def track_folder(
     from_images: bool | None = None,
     model: str | os.PathLike[str] | None = None,
     flip: bool | None = None,
+    tip_shift: float | None = None,
 ) -> TrackReport:
     """Replay the flight in ``flight_dir`` keyframe by keyframe through a :class:`Tracker`.
 
@@ -670,7 +675,7 @@ def track_folder(
     photos: list[Path] = []
     detector: Callable[[np.ndarray], np.ndarray] | None = None
     if from_images:
-        flight, photos, detector = _photo_flight(flight_dir, model, flip)
+        flight, photos, detector = _photo_flight(flight_dir, model, flip, tip_shift)
     else:
         flight = read_flight(flight_dir)
     tracker = Tracker(flight.camera, flight.turbine, cfg, detector=detector)
@@ -757,7 +762,7 @@ def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:
 
 
 def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
-                  flip: bool | None = None
+                  flip: bool | None = None, tip_shift: float | None = None
                   ) -> tuple[Flight, list[Path], Callable[[np.ndarray], np.ndarray]]:
     """The flight with its photos in place of heat-maps: the photos' paths, checked, and a
     detector making heat-maps at the fit's working size (see :func:`image_heatmap_source`).
@@ -779,7 +784,7 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
 
     flight = read_flight(flight_dir, heatmaps=source)
     # spinning off: the solver needs the cores between photos
-    detector = HeatmapDetector(model, spinning=False, flip=flip)
+    detector = HeatmapDetector(model, spinning=False, flip=flip, tip_shift=tip_shift)
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:

@@ -32,6 +32,13 @@ model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
   outboard of the true tip, measured where the hub is visible), and of the detected tower
   top along the tower (positive = towards the base, where the base is visible; detections
   within ``match_px``).
+* **Tip shift** (``tip_shift_px``, a calibration, not a score): minus the mean signed
+  offset along the blade of the tip peaks matched within ``shift_match_px`` (10 px, twice
+  ``match_px``, so that the tips a net finds a few pixels inboard count too) on blades at
+  least ``shift_min_blade_px`` (20 px) long whose hub is visible: how far the tip channel
+  must move outward from the hub for its peaks to sit on the tips on average
+  (:attr:`turbinefit.detect.ModelInfo.tip_shift_px`). 0 from fewer than
+  ``shift_min_count`` (20) matches.
 """
 
 from __future__ import annotations
@@ -121,6 +128,9 @@ class DetectionStats:
     nms_px: int = 7
     px_scale: float = 1.0
     short_blade_px: float = 40.0
+    shift_match_px: float = 10.0
+    shift_min_blade_px: float = 20.0
+    shift_min_count: int = 20
     point_errors: list[list[float]] = field(default_factory=lambda: [[], [], []])
     point_visible: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
     point_detected: NDArray[np.int64] = field(default_factory=lambda: np.zeros(3, np.int64))
@@ -136,6 +146,7 @@ class DetectionStats:
     inter: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     union: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     tip_along: list[float] = field(default_factory=list)
+    tip_along_wide: list[float] = field(default_factory=list)
     top_along: list[float] = field(default_factory=list)
     images: int = 0
 
@@ -177,6 +188,12 @@ class DetectionStats:
                 self.tip_along.append(
                     px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
         self.tips_matched += len(pairs)
+        if visible[2]:
+            for a, b, _ in match_points(det, tips, self.shift_match_px / px):
+                axis = tips[b] - points[2]
+                if px * float(np.hypot(*axis)) >= self.shift_min_blade_px:
+                    self.tip_along_wide.append(
+                        px * _along(det[a, 0], det[a, 1], tips[b], axis))
         self.tips_in_sight_matched += int(sum(tip_seen[b] for _, b, _ in pairs))
         self.tips_short_matched += int(sum(tip_short[b] for _, b, _ in pairs))
         for k, c in enumerate((4, 5, 6)):
@@ -188,7 +205,8 @@ class DetectionStats:
         ``tips_recall_in_sight``, ``tips_in_sight`` (share of the visible tips in sight),
         ``tips_recall_short``, ``tips_recall_long`` (blades under / over
         ``short_blade_px``), ``tips_short`` (share of the visible tips on short blades),
-        ``iou_<line>``, ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined)."""
+        ``iou_<line>``, ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined),
+        ``tip_shift_px`` (0 where undefined)."""
         out: dict[str, float] = {"images": float(self.images)}
         for c, name in enumerate(POINT_NAMES3):
             e = self.point_errors[c]
@@ -210,6 +228,9 @@ class DetectionStats:
         out["tip_bias_px"] = float(np.mean(self.tip_along)) if self.tip_along else float("nan")
         out["tower_top_bias_px"] = (float(np.mean(self.top_along)) if self.top_along
                                     else float("nan"))
+        wide = self.tip_along_wide
+        out["tip_shift_px"] = (-float(np.mean(wide)) if len(wide) >= self.shift_min_count
+                               else 0.0)
         return out
 
 

@@ -366,9 +366,16 @@ def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uin
     the same threshold unless ``tip_threshold``), of the maps as
     :class:`~turbinefit.detect.HeatmapDetector` makes them: with ``flip``, the mean of the
     maps of each image and of its mirror image mirrored back (the loss is of the image's
-    own maps)."""
+    own maps). Distances are in pixels of the heat-map grid, except ``tip_shift_px``:
+    pixels of the net's input, as :attr:`~turbinefit.detect.ModelInfo.tip_shift_px`
+    (calibrated with the input-pixel radius and blade length of :class:`DetectionStats`)."""
     net.eval()
-    stats = {t: DetectionStats(threshold=t, tip_threshold=tip_threshold) for t in thresholds}
+    scale = net.input_scale
+    dflt = DetectionStats()
+    stats = {t: DetectionStats(threshold=t, tip_threshold=tip_threshold,
+                               shift_match_px=dflt.shift_match_px / scale,
+                               shift_min_blade_px=dflt.shift_min_blade_px / scale)
+             for t in thresholds}
     total, n = 0.0, 0
     with torch.no_grad():
         for k in range(0, len(images), batch):
@@ -387,7 +394,10 @@ def evaluate(net: HeatmapNet, images: NDArray[np.uint8], targets: NDArray[np.uin
                 for s in stats.values():
                     s.add(pred[j], tgt[j], points[k + j], visible[k + j])
     net.train()
-    return total / max(n, 1), {t: s.summary() for t, s in stats.items()}
+    out = {t: s.summary() for t, s in stats.items()}
+    for m in out.values():
+        m["tip_shift_px"] *= scale
+    return total / max(n, 1), out
 
 
 def calibrate_thresholds(summaries: dict[float, dict[str, float]], max_false: float = 0.05
@@ -434,15 +444,17 @@ def _write_history(path: Path, history: list[EpochRecord]) -> None:
 
 def _calibrated_metrics(net: HeatmapNet, val: Dataset, pos_weight: float,
                         grid: tuple[float, ...]
-                        ) -> tuple[float, dict[str, float], tuple[float, float]]:
-    """Held-out loss, metrics at the calibrated thresholds, and those thresholds."""
+                        ) -> tuple[float, dict[str, float], tuple[float, float, float]]:
+    """Held-out loss, metrics at the calibrated thresholds, and those thresholds with the
+    tip shift (:attr:`~turbinefit.detect.ModelInfo.tip_shift_px`) at the tip threshold."""
     loss, summaries = evaluate(net, val.images, val.targets, val.points, val.visible,
                                pos_weight, grid)
     point, tip = calibrate_thresholds(summaries)
     tips = summaries[tip]
     metrics = dict(summaries[point], tips_recall=tips["tips_recall"],
-                   tips_precision=tips["tips_precision"], threshold=point, tip_threshold=tip)
-    return loss, metrics, (point, tip)
+                   tips_precision=tips["tips_precision"], tip_shift_px=tips["tip_shift_px"],
+                   threshold=point, tip_threshold=tip)
+    return loss, metrics, (point, tip, tips["tip_shift_px"])
 
 
 def format_metrics(m: dict[str, float]) -> str:
@@ -603,8 +615,10 @@ def train(cfg: TrainConfig, progress: bool = True,
 
     # Thresholds of the final weights (again if a finished run is run again: re-export).
     threshold = tip_threshold = 0.3
+    tip_shift = 0.0
     if val is not None:
-        _, final, (threshold, tip_threshold) = _calibrated_metrics(net, val, cfg.pos_weight, grid)
+        _, final, (threshold, tip_threshold, tip_shift) = _calibrated_metrics(
+            net, val, cfg.pos_weight, grid)
         log(f"held-out, final: {format_metrics(final)}")
     state = net.state_dict()
     fine = fine_width(state)
@@ -616,7 +630,8 @@ def train(cfg: TrainConfig, progress: bool = True,
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
-                     tip_threshold=tip_threshold, flip=FLIP, opset=OPSET,
+                     tip_threshold=tip_threshold, flip=FLIP,
+                     tip_shift_px=round(tip_shift, 3), opset=OPSET,
                      description=desc)
     model_path = export_onnx(net, out / "model.onnx", info)
     save_npz(net, out / "weights.npz")
