@@ -415,8 +415,9 @@ def _add_flip_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tip-shift", type=_tip_shift, default=None, metavar="PX",
                         help="move the blade-tip heat-map this many pixels (at the model's "
                         "input width) outward from the detected hub, undoing the net's "
-                        "inboard bias; 0 keeps the net's own (default: the model's "
-                        "calibrated value, 0.709 for the shipped model)")
+                        "inboard bias; 0 keeps the net's own (default: the value "
+                        "calibrated for the model, turbinefit.tip_shift_px in its "
+                        "metadata)")
 
 
 def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any, batch: bool = True) -> None:
