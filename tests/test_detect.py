@@ -309,6 +309,11 @@ def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.Captur
                  "--quiet", "--no-flip"]) == 0
     assert (tmp_path / "fit_nf" / "turbine.yaml").read_text() != \
         (out / "turbine.yaml").read_text()
+    # so does --tip-shift (0: the net's own tip channel)
+    assert main(["fit", str(flight), "--out", str(tmp_path / "fit_ts"), "--no-plots",
+                 "--quiet", "--tip-shift", "0"]) == 0
+    assert (tmp_path / "fit_ts" / "turbine.yaml").read_text() != \
+        (out / "turbine.yaml").read_text()
     # a photo missing / of the wrong size: one clear error, nothing written
     photos[3].unlink()
     assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2

@@ -272,7 +272,8 @@ class HeatmapDetector:
 
     def detect_small(self, image: NDArray[np.uint8]) -> F32Array:
         """Heat-maps (7, h, w) at the model's output size of one RGB uint8 photo (the
-        input size divided by ``output_scale``)."""
+        input size divided by ``output_scale``): flip-averaged if :attr:`flip`, the tip
+        channel moved out by :attr:`tip_shift` (steps 2-3 of the module docstring)."""
         x, (mw, mh) = self._prepare(image)
         s = self.info.output_scale
         out = self.session.run(None, {self._input: x})[0][:, :, :mh // s, :mw // s]
