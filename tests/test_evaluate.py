@@ -104,6 +104,13 @@ def test_evaluate_cli_measures_the_shipped_model(labelled: Path, tmp_path: Path,
     assert "exists" in capsys.readouterr().err and report.read_text() == before
     assert main([*args, "--out", str(report), "--match-px", "3", "--overwrite"]) == 0
     assert json.loads(report.read_text())["match_px"] == 3.0
+    # the tip shift used is reported; --tip-shift 0 turns it off
+    from turbinefit.detect import HeatmapDetector
+
+    assert data["tip_shift_px"] == HeatmapDetector(threads=1).info.tip_shift_px > 0
+    assert main([*args, "--out", str(report), "--overwrite", "--tip-shift", "0"]) == 0
+    assert json.loads(report.read_text())["tip_shift_px"] == 0.0
+    assert "tip shift 0 px" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("bad", ["out_is_input", "wrong_size", "unknown_name", "bad_model"])

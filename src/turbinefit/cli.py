@@ -790,7 +790,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
                           tip_shift=args.tip_shift)
     m = rep.summary
     print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
-          f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}); distances in "
+          f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}, tip shift "
+          f"{rep.tip_shift:g} px); distances in "
           f"pixels of the photos resized to {rep.input_width} px wide, matches within "
           f"{args.match_px:g} px")
 

@@ -506,6 +506,7 @@ class EvaluateReport:
     threshold: float
     tip_threshold: float
     out: Path | None
+    tip_shift: float = 0.0
 
 
 def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLike[str],
@@ -567,11 +568,11 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
         report = {"turbinefit_version": __version__, "model": str(det.path),
                   "labels": str(labels), "input_width": info.input_width,
                   "threshold": info.threshold, "tip_threshold": info.tip_threshold,
-                  "match_px": match_px,  # NaN (undefined) is written as null
+                  "tip_shift_px": det.tip_shift, "match_px": match_px,  # NaN (undefined) is written as null
                   "metrics": {k: v if math.isfinite(v) else None for k, v in summary.items()}}
         write_text_atomic(out_path, json.dumps(report, indent=2) + "\n")
     return EvaluateReport(summary, len(items), Path(det.path), info.input_width,
-                          info.threshold, info.tip_threshold, out_path)
+                          info.threshold, info.tip_threshold, out_path, det.tip_shift)
 
 
 #: Everything ``track`` writes into its output folder: all that ``track --overwrite`` replaces.
