@@ -64,10 +64,10 @@ def _positive_float(text: str) -> float:
 
 
 def _tip_shift(text: str) -> float:
-    from turbinefit.detect import TIP_SHIFT_TAPER_PX
+    from turbinefit.detect import TIP_SHIFT_TAPER_PX, valid_tip_shift
 
     v = _float(text)
-    if not (math.isfinite(v) and abs(v) < TIP_SHIFT_TAPER_PX):
+    if not valid_tip_shift(v):
         raise argparse.ArgumentTypeError(
             f"must be a number of pixels between -{TIP_SHIFT_TAPER_PX:g} and "
             f"{TIP_SHIFT_TAPER_PX:g}, got {text!r}")

@@ -80,6 +80,12 @@ HUB, TIP = CHANNEL_NAMES.index("point_hub"), CHANNEL_NAMES.index("point_blade_ti
 #: where the net's blobs of hub and tips merge).
 TIP_SHIFT_TAPER_PX = 20.0
 
+
+def valid_tip_shift(px: float) -> bool:
+    """Whether ``px`` can be a tip shift: finite and within the taper radius, where
+    :func:`shift_tips` stays one-to-one."""
+    return math.isfinite(px) and abs(px) < TIP_SHIFT_TAPER_PX
+
 #: Overlay colour (RGB) of each channel.
 CHANNEL_COLOURS = np.array([
     (255, 40, 40),    # point_base: red
@@ -152,7 +158,7 @@ class ModelInfo:
                                  path=path) from None
         info = ModelInfo(**kw)  # type: ignore[arg-type]
         if (info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0
-                or not abs(info.tip_shift_px) < TIP_SHIFT_TAPER_PX
+                or not valid_tip_shift(info.tip_shift_px)
                 or info.output_scale not in (1, 2) or info.stride % info.output_scale
                 or info.input_width % info.output_scale):
             raise InputError(f"model metadata out of range: {info}", path=path)
@@ -251,7 +257,7 @@ class HeatmapDetector:
         self._input = inputs[0].name
         self.flip = self.info.flip if flip is None else bool(flip)
         self.tip_shift = self.info.tip_shift_px if tip_shift is None else float(tip_shift)
-        if not (math.isfinite(self.tip_shift) and abs(self.tip_shift) < TIP_SHIFT_TAPER_PX):
+        if not valid_tip_shift(self.tip_shift):
             raise ValueError(f"tip shift {self.tip_shift} px is outside "
                              f"(-{TIP_SHIFT_TAPER_PX:g}, {TIP_SHIFT_TAPER_PX:g})")
         # the resize's threads must not spin after a run: they would take the net's cores
@@ -322,8 +328,10 @@ def shift_tips(tip: F32Array, hub_uv: tuple[float, float], shift: float, taper: 
     that): a fraction of a millisecond for a 160 x 120 map.
     """
     out = tip.copy()
+    if shift == 0:
+        return out
     ii, jj = np.nonzero(tip > 1e-2)
-    if len(ii) == 0 or shift == 0:
+    if len(ii) == 0:
         return out
     h, w = tip.shape
     m = math.ceil(abs(shift)) + 3

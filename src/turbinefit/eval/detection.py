@@ -188,14 +188,14 @@ class DetectionStats:
                 self.tip_along.append(
                     px * _along(det[a, 0], det[a, 1], tips[b], tips[b] - points[2]))
         self.tips_matched += len(pairs)
-        if visible[2]:
+        self.tips_in_sight_matched += int(sum(tip_seen[b] for _, b, _ in pairs))
+        self.tips_short_matched += int(sum(tip_short[b] for _, b, _ in pairs))
+        if visible[2]:  # the tip shift: matches within the wider radius, blades long enough
             for a, b, _ in match_points(det, tips, self.shift_match_px / px):
                 axis = tips[b] - points[2]
                 if px * float(np.hypot(*axis)) >= self.shift_min_blade_px:
                     self.tip_along_wide.append(
                         px * _along(det[a, 0], det[a, 1], tips[b], axis))
-        self.tips_in_sight_matched += int(sum(tip_seen[b] for _, b, _ in pairs))
-        self.tips_short_matched += int(sum(tip_short[b] for _, b, _ in pairs))
         for k, c in enumerate((4, 5, 6)):
             _add_overlap(self.inter, self.union, k, pred[c], target[c])
 
