@@ -56,18 +56,21 @@ def test_counts() -> None:
 
 
 def test_biases_are_signed_along_the_blade_and_the_tower() -> None:
-    """Tips drawn 1 px inboard and the tower top 0.5 px towards the base give -1 and +0.5."""
+    """Tips drawn 1 px inboard, the tower top 0.5 px towards the base and the base 0.25 px
+    below the truth (away from the top) give -1, +0.5 and -0.25."""
     uv = _TURBINE_UV
     vis = np.ones(6, bool)
     target = _maps(uv, vis)
     moved = _tips_inboard(uv, 1.0)
     moved[1, 1] += 0.5
+    moved[0, 1] += 0.25
     pred = _maps(moved, vis)
     st = DetectionStats(threshold=0.5)
     st.add(pred, target, uv, vis)
     m = st.summary()
     assert m["tip_bias_px"] == pytest.approx(-1.0, abs=0.05)
     assert m["tower_top_bias_px"] == pytest.approx(0.5, abs=0.05)
+    assert m["base_bias_px"] == pytest.approx(-0.25, abs=0.05)
     assert m["tips_recall"] == 1.0
 
 
@@ -76,6 +79,7 @@ def test_biases_are_nan_without_matches() -> None:
     st.add(np.zeros((7, 60, 80)), np.zeros((7, 60, 80)), np.zeros((6, 2)), np.zeros(6, bool))
     m = st.summary()
     assert np.isnan(m["tip_bias_px"]) and np.isnan(m["tower_top_bias_px"])
+    assert np.isnan(m["base_bias_px"])
 
 
 def test_px_scale_reports_distances_in_input_pixels() -> None:

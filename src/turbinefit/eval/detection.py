@@ -29,9 +29,11 @@ model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
   prediction and target, pooled over all images (sum of intersections / sum of unions).
 * **Biases** (what a fit over many keyframes adds up, where per-image medians hide it):
   the mean signed error of matched blade tips along their blade (sub-pixel, positive =
-  outboard of the true tip, measured where the hub is visible), and of the detected tower
-  top along the tower (positive = towards the base, where the base is visible; detections
-  within ``match_px``).
+  outboard of the true tip, measured where the hub is visible), of the detected tower
+  top along the tower (positive = towards the base, where the base is visible) and of the
+  detected base along the tower (positive = towards the tower top, where the tower top is
+  visible); detections within ``match_px``. A negative base bias (the base detected
+  below the truth) or a negative tower-top bias lengthens the tower a fit finds.
 * **Tip shift** (``tip_shift_px``, a calibration, not a score): minus the mean signed
   offset along the blade of the tip peaks matched within ``shift_match_px`` (10 px, twice
   ``match_px``, so that the tips a net finds a few pixels inboard count too) on blades at
@@ -148,6 +150,7 @@ class DetectionStats:
     tip_along: list[float] = field(default_factory=list)
     tip_along_wide: list[float] = field(default_factory=list)
     top_along: list[float] = field(default_factory=list)
+    base_along: list[float] = field(default_factory=list)
     images: int = 0
 
     def add(self, pred: NDArray[np.floating], target: NDArray[np.floating],
@@ -165,9 +168,10 @@ class DetectionStats:
                     self.point_detected[c] += 1
                     err = px * float(np.hypot(u - points[c, 0], v - points[c, 1]))
                     self.point_errors[c].append(err)
-                    if c == 1 and visible[0] and err <= self.match_px:
-                        self.top_along.append(
-                            px * _along(u, v, points[1], points[0] - points[1]))
+                    other = 1 - c  # base <-> tower top
+                    if c < 2 and visible[other] and err <= self.match_px:
+                        (self.top_along if c == 1 else self.base_along).append(
+                            px * _along(u, v, points[c], points[other] - points[c]))
             else:
                 self.point_hidden[c] += 1
                 self.point_false[c] += int(val > self.threshold)
@@ -205,8 +209,8 @@ class DetectionStats:
         ``tips_recall_in_sight``, ``tips_in_sight`` (share of the visible tips in sight),
         ``tips_recall_short``, ``tips_recall_long`` (blades under / over
         ``short_blade_px``), ``tips_short`` (share of the visible tips on short blades),
-        ``iou_<line>``, ``tip_bias_px``, ``tower_top_bias_px`` (NaN where undefined),
-        ``tip_shift_px`` (0 where undefined)."""
+        ``iou_<line>``, ``tip_bias_px``, ``tower_top_bias_px``, ``base_bias_px`` (NaN where
+        undefined), ``tip_shift_px`` (0 where undefined)."""
         out: dict[str, float] = {"images": float(self.images)}
         for c, name in enumerate(POINT_NAMES3):
             e = self.point_errors[c]
@@ -228,6 +232,8 @@ class DetectionStats:
         out["tip_bias_px"] = float(np.mean(self.tip_along)) if self.tip_along else float("nan")
         out["tower_top_bias_px"] = (float(np.mean(self.top_along)) if self.top_along
                                     else float("nan"))
+        out["base_bias_px"] = (float(np.mean(self.base_along)) if self.base_along
+                               else float("nan"))
         wide = self.tip_along_wide
         out["tip_shift_px"] = (-float(np.mean(wide)) if len(wide) >= self.shift_min_count
                                else 0.0)
