@@ -25,9 +25,9 @@
   flight, of the model's heat-maps of the flight's photos (as ``fit --from-images`` makes
   them, tip shift on) against its ideal heat-maps and ground-truth points, in pixels of
   the 320 x 240 photos; and the spread of the per-flight biases. A flight is one scene
-  (sky, terrain, paint) seen 200 times, so the net's scene-dependent biases do not average
-  out over its keyframes as they do over the held-out renders' independent scenes: this
-  is what the fit from photos adds up.
+  (sky, terrain, paint) and one path seen 200 times, so its errors need not average out
+  over its keyframes as they do over the held-out renders' independent scenes (the README
+  measures whether its mean offsets are what limits the fit: they are not).
 
 Usage::
 
