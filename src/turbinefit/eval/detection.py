@@ -168,10 +168,9 @@ class DetectionStats:
                     self.point_detected[c] += 1
                     err = px * float(np.hypot(u - points[c, 0], v - points[c, 1]))
                     self.point_errors[c].append(err)
-                    other = 1 - c  # base <-> tower top
-                    if c < 2 and visible[other] and err <= self.match_px:
-                        (self.top_along if c == 1 else self.base_along).append(
-                            px * _along(u, v, points[c], points[other] - points[c]))
+                    if c < 2 and visible[1 - c] and err <= self.match_px:  # base, top
+                        (self.base_along, self.top_along)[c].append(
+                            px * _along(u, v, points[c], points[1 - c] - points[c]))
             else:
                 self.point_hidden[c] += 1
                 self.point_false[c] += int(val > self.threshold)
