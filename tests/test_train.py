@@ -499,3 +499,35 @@ def test_train_refuses_an_old_dataset_before_writing(tmp_path: Path) -> None:
         train(cfg, progress=False, log=lambda _: None)
     assert not (tmp_path / "out").exists()
     assert not (tmp_path / "data" / "val-n2-s0-x2").exists()
+
+
+def test_train_adds_renders_of_earlier_runs(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """--add-data trains on a finished training set of another run as well; a folder that
+    is no dataset, is unfinished, is of another input scale or is the run's own set is one
+    clear error (exit 2) before anything is written."""
+    earlier = tmp_path / "earlier" / "train-n8-s5-x2"
+    build_dataset(earlier, DatasetSpec(8, 5, image_scale=2), workers=1, progress=False)
+    args = ["train", "--images", "4", "--val-images", "0", "--epochs", "1", "--batch", "4",
+            "--workers", "1", "--quiet", "--max-steps", "1", "--data", str(tmp_path / "data")]
+    assert main([*args, "--out", str(tmp_path / "m"), "--add-data", str(earlier)]) == 0
+    assert "12 training images" in capsys.readouterr().out
+    assert (tmp_path / "m" / "model.onnx").is_file()
+
+    small = tmp_path / "small" / "train-n2-s0-x1"
+    build_dataset(small, DatasetSpec(2, 0, image_scale=1), workers=1, progress=False)
+    unfinished = tmp_path / "unfinished"
+    build_dataset(unfinished, DatasetSpec(2, 1, image_scale=2), workers=1, progress=False)
+    done = np.load(unfinished / "done.npy", mmap_mode="r+")
+    done[1] = False
+    done.flush()
+    del done
+    (tmp_path / "empty").mkdir()
+    for folder, why in ((tmp_path / "empty", "not a dataset folder"),
+                        (small, "another kind"), (unfinished, "unfinished"),
+                        (tmp_path / "data" / "train-n4-s0-x2", "own training set")):
+        out = tmp_path / f"bad-{folder.name}"
+        assert main([*args, "--out", str(out), "--add-data", str(folder)]) == 2
+        err = capsys.readouterr().err
+        assert why in err and str(folder) in err and len(err.strip().splitlines()) == 1
+        assert not out.exists()

@@ -351,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="rendering processes (default: all cores)")
     t.add_argument("--data", dest="data_dir", type=Path, default=None,
                    help="dataset folder to render into / reuse (default: MODEL_DIR/data)")
+    t.add_argument("--add-data", action="append", type=Path, default=None, metavar="FOLDER",
+                   help="a training set rendered before (e.g. OTHER/data/train-n16384-s9-x2) to "
+                   "train on as well; repeat for several")
     t.add_argument("--labels", type=Path, default=None, help="COCO keypoint JSON of real photos")
     t.add_argument("--images-dir", type=Path, default=None,
                    help="folder the COCO file_name entries are relative to")
@@ -366,7 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="W,W,W,W,W,W,W",
                    help="loss weight of each channel (base, tower_top, hub, tip, line_tower, "
                    "line_nacelle, line_blade); the shipped model's last fine-tuning used "
-                   "1,1,1,3,1,5,1")
+                   "1,1,1,3,1,5,2")
     t.add_argument("--widths", type=_widths, default=None, metavar="W1,W2,W3,W4",
                    help="channel widths of the net at 1/2, 1/4, 1/8, 1/16 of the heat-map "
                    "resolution (default: those of --init, else 32,48,64,112); --init weights "
@@ -826,6 +829,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     cfg = TrainConfig(out_dir=args.out_dir, n_images=args.n_images, val_images=args.val_images,
                       epochs=args.epochs, batch=args.batch, lr=args.lr, seed=args.seed,
                       threads=args.threads, workers=args.workers, data_dir=args.data_dir,
+                      add_data=tuple(args.add_data or ()),
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
                       pos_weight=args.pos_weight, channel_weights=args.channel_weights,

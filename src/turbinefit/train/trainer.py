@@ -23,7 +23,7 @@ comes out above 0.5 once q > 1 / (1 + pos_weight)): the default 2 paints lines a
 wide as their targets, where 10 painted a third too much. ``channel_weights`` multiply
 each channel's loss (both its positive and its background pixels, so each channel's
 per-pixel optimum is unchanged): they only share the net's effort differently. The shipped
-model's last fine-tuning weighted the tip channel 3 and the nacelle 5.
+model's last fine-tunings weighted the tip channel 3, the nacelle 5 and the blade line 2.
 
 Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
 brightness / contrast / colour jitter; the renderer provides the rest of the variety.
@@ -42,7 +42,7 @@ import io
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +66,7 @@ from turbinefit.sim.dataset import (
     DatasetSpec,
     build_dataset,
     check_dataset_folder,
+    read_spec,
 )
 from turbinefit.train.net import (
     STRIDE,
@@ -88,7 +89,7 @@ OPSET = 17
 FLIP = True
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
-                "input_scale", "pos_weight", "channel_weights", "widths", "fine")
+                "input_scale", "pos_weight", "channel_weights", "widths", "fine", "add_data")
 
 
 @dataclass
@@ -110,6 +111,9 @@ class TrainConfig:
         threads: PyTorch threads.
         workers: processes rendering the dataset (default: all cores).
         data_dir: where datasets are rendered / reused (default ``out_dir/data``).
+        add_data: finished training sets rendered before (dataset folders such as
+            ``OTHER/data/train-n16384-s9-x2``, of this data version and input scale) to
+            train on together with this run's: more renders without rendering them again.
         labels: COCO keypoint file of real labelled photos to train on as well.
         images_dir: folder the COCO file's ``file_name`` are relative to.
         init: ``weights.npz`` to start from (fine-tuning); default for ``labels`` is the
@@ -142,6 +146,7 @@ class TrainConfig:
     threads: int = 1
     workers: int | None = None
     data_dir: Path | None = None
+    add_data: tuple[Path, ...] = ()
     labels: Path | None = None
     images_dir: Path | None = None
     init: Path | None = None
@@ -492,6 +497,24 @@ def _labelled_arrays(cfg: TrainConfig, scale: int) -> tuple[NDArray[np.uint8], N
     return np.stack(imgs), np.stack(tgts)
 
 
+def _added_dataset(folder: Path, main: tuple[Path, DatasetSpec]) -> Dataset:
+    """An ``add_data`` folder: a finished training set of the same kind as this run's
+    (data version, image size and scale, target width), not this run's own folder."""
+    spec = read_spec(folder)
+    like = main[1]
+    if replace(spec, n_images=like.n_images, seed=like.seed) != like:
+        raise InputError(f"holds renders of another kind ({spec}); this run trains on data "
+                         f"version {like.version} at input scale {like.image_scale}",
+                         path=folder)
+    if folder.resolve() == main[0].resolve():
+        raise InputError("is this run's own training set; give other renders", path=folder)
+    ds = Dataset(folder)
+    if not ds.complete:
+        raise InputError(f"is unfinished ({int(ds.done.sum())} of {len(ds)} images rendered); "
+                         "finish it with the train command that started it", path=folder)
+    return ds
+
+
 def train(cfg: TrainConfig, progress: bool = True,
           log: Callable[[str], None] = print) -> TrainResult:
     """Train (or resume training) as ``cfg`` says; see the module docstring."""
@@ -540,11 +563,13 @@ def train(cfg: TrainConfig, progress: bool = True,
                                      image_scale=scale)))
     for folder, spec in datasets:  # a folder of another spec: refused before any writing
         check_dataset_folder(folder, spec)
+    extra = [_added_dataset(Path(f), datasets[0]) for f in cfg.add_data]
     out.mkdir(parents=True, exist_ok=True)
     rendered, *vals = (build_dataset(folder, spec, cfg.workers, progress)
                        for folder, spec in datasets)
     val: Dataset | None = vals[0] if vals else None
-    parts: list[_Arrays] = [_Arrays(rendered.images, rendered.targets, augment=True)]
+    parts: list[_Arrays] = [_Arrays(d.images, d.targets, augment=True)
+                            for d in (rendered, *extra)]
     if labelled is not None:
         parts.append(_Arrays(labelled[0], labelled[1], augment=True))
     train_set: torch.utils.data.ConcatDataset[tuple[torch.Tensor, torch.Tensor]] = (
