@@ -10,9 +10,12 @@
   biases of blade tips and tower top that a fit adds up. Distances twice: in pixels of
   the photos the model reads (the issue's yardstick: 2 px, 5 px) and in pixels of the
   heat-map grid (half as many for a model of output scale 2; the unit of models that read
-  160 x 120 photos).
+  160 x 120 photos). For a model with test-time zoom (the shipped one), the figures in
+  input pixels also without it (``HeatmapDetector(zoom=False)``).
 * **Inference speed** at 320 x 240: :meth:`HeatmapDetector.detect` (resize to the input
-  size, the net, resize of the 7 maps back to 320 x 240) on rendered photos, all cores.
+  size, the net, test-time zoom where it applies, resize of the 7 maps back to 320 x
+  240) on the first 100 photos of the first flight, all cores: median and best of 5
+  runs, and without zoom.
 * **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),
   fitted from the ideal heat-maps and from the heat-maps detected in the photos
   (``turbinefit fit --from-images``), each with the default options and with
@@ -20,7 +23,8 @@
   and their ratios: to the best ideal fit (the defaults) and to the ideal fit with the
   same options; over all flights, and over those the detected-map options were not
   chosen on (seeds other than 0-5). For a model with a tip shift (the shipped one), the
-  tuned fit also without it (``--tip-shift 0``): what the calibrated shift gains.
+  tuned fit also without it (``--tip-shift 0``): what the calibrated shift gains; for a
+  model with test-time zoom, the tuned fit also without it (``--no-zoom``).
 * **Detection on each flight**: the same detection figures as on the held-out renders, per
   flight, of the model's heat-maps of the flight's photos (as ``fit --from-images`` makes
   them, tip shift on) against its ideal heat-maps and ground-truth points, in pixels of
@@ -68,6 +72,8 @@ HELDOUT_SEED = 777_777
 #: Fit options for detected heat-maps that measured best here (interpolated point cost,
 #: Cauchy loss: the net's peaks carry ~1 px biases that correspondences follow).
 DETECTED_OPTIONS = ["--points", "interp", "--robust", "cauchy"]
+#: Fits of detected maps with DETECTED_OPTIONS and one of the detector's steps turned off.
+VARIANTS = ("detected_tuned_unshifted", "detected_tuned_unzoomed")
 #: The flights DETECTED_OPTIONS were chosen on; the others measure them without that bias.
 OPTION_SEEDS = frozenset(range(6))
 
@@ -147,7 +153,7 @@ def summarise(rows: list[dict]) -> dict[str, dict]:
     """Mean errors of fit rows, their ratios to the ideal fit with the default options, and
     the ratio of the detected to the ideal heat-maps both fitted with DETECTED_OPTIONS."""
     kinds = [k for k in ("ideal", "ideal_tuned", "detected", "detected_tuned",
-                         "detected_tuned_unshifted") if k in rows[0]]
+                         *VARIANTS) if k in rows[0]]
     mean = {k: {q: statistics.mean(r[k][q] for r in rows)
                 for q in ("position_m", "orientation_deg", "model_point_m")}
             for k in kinds}
@@ -155,9 +161,10 @@ def summarise(rows: list[dict]) -> dict[str, dict]:
              for k in kinds if k.startswith("detected")}
     same = {q: mean["detected_tuned"][q] / mean["ideal_tuned"][q] for q in mean["ideal"]}
     out = {"mean": mean, "ratio": ratio, "ratio_same_options": same}
-    if "detected_tuned_unshifted" in mean:
-        out["ratio_same_options_unshifted"] = {
-            q: mean["detected_tuned_unshifted"][q] / mean["ideal_tuned"][q] for q in mean["ideal"]}
+    for k in VARIANTS:
+        if k in mean:
+            out["ratio_same_options_" + k.removeprefix("detected_tuned_")] = {
+                q: mean[k][q] / mean["ideal_tuned"][q] for q in mean["ideal"]}
     return out
 
 
@@ -184,22 +191,31 @@ def fit(flight: Path, extra: list[str]) -> dict:
             "before_position_m": s["accuracy"]["before"]["position_error_m"]}
 
 
-def speed(det: HeatmapDetector, flight: Path, count: int = 100) -> dict[str, Any]:
+def speed(det: HeatmapDetector, flight: Path, count: int = 100, rounds: int = 5
+          ) -> dict[str, Any]:
+    """Photos per second of ``det.detect`` on the first ``count`` photos of ``flight``:
+    the median and the best of ``rounds`` runs (a 2-core machine's other work makes single
+    runs vary by +-10 %), and one run with PNG decoding; with the share of photos zoomed."""
     photos = sorted((flight / "images").iterdir())[:count]
     imgs = [read_image(p) for p in photos]
     for im in imgs[:5]:
         det.detect(im)
-    t0 = time.perf_counter()
-    for im in imgs:
-        det.detect(im)
-    t_det = time.perf_counter() - t0
+    rates = []
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        for im in imgs:
+            det.detect(im)
+        rates.append(len(imgs) / (time.perf_counter() - t0))
     t0 = time.perf_counter()
     for p in photos:
         det.detect(read_image(p))
     t_all = time.perf_counter() - t0
+    zoomed = sum(det.zoom and det.zoom_box(det.detect_small(im)) is not None for im in imgs)
     return {"images": len(imgs), "size": [int(imgs[0].shape[1]), int(imgs[0].shape[0])],
-            "images_per_s": round(len(imgs) / t_det, 1),
-            "images_per_s_with_png_decode": round(len(imgs) / t_all, 1)}
+            "images_per_s": round(statistics.median(rates), 1),
+            "images_per_s_best": round(max(rates), 1),
+            "images_per_s_with_png_decode": round(len(imgs) / t_all, 1),
+            "zoomed": zoomed}
 
 
 def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
@@ -226,7 +242,7 @@ def main() -> None:
     det = HeatmapDetector(args.model)
     print(f"model {det.path} (thresholds {det.info.threshold:.2f}, tips {det.info.tip_threshold:.2f}, "
           f"input {det.info.input_width} px, flip averaging {'on' if det.flip else 'off'}, "
-          f"tip shift {det.tip_shift:g} px)")
+          f"tip shift {det.tip_shift:g} px, zoom {'on' if det.zoom else 'off'})")
 
     m_input, m_grid = heldout_metrics(det, args.heldout)
     size = f"{det.info.input_width}x{det.info.input_height}"
@@ -235,11 +251,23 @@ def main() -> None:
     if det.info.output_scale != 1:
         print(f"the same in pixels of the heat-map grid (1/{det.info.output_scale}):")
         print_heldout(m_grid, "heat-map px")
+    unzoomed = HeatmapDetector(args.model, zoom=False)
+    m_unzoomed = heldout_metrics(unzoomed, args.heldout)[0] if det.zoom else None
+    if m_unzoomed is not None:
+        print(f"the same without test-time zoom, in pixels of the {size} input photos:")
+        print_heldout(m_unzoomed, f"{size} px")
 
     flights = [simulate(s, args.keyframes) for s in args.seeds]
     sp = speed(det, flights[0])
     print(f"inference at {sp['size'][0]}x{sp['size'][1]}: {sp['images_per_s']} images/s "
-          f"({sp['images_per_s_with_png_decode']} with PNG decoding), {os.cpu_count()} cores")
+          f"(median of 5 runs, best {sp['images_per_s_best']}; "
+          f"{sp['images_per_s_with_png_decode']} with PNG decoding; {sp['zoomed']} of "
+          f"{sp['images']} photos zoomed), {os.cpu_count()} cores")
+    sp_unzoomed = speed(unzoomed, flights[0]) if det.zoom else None
+    del unzoomed  # its onnxruntime threads would spin against the fits' subprocesses
+    if sp_unzoomed is not None:
+        print(f"  without zoom: {sp_unzoomed['images_per_s']} images/s (best "
+              f"{sp_unzoomed['images_per_s_best']})")
 
     example_sheet(det, flights[min(1, len(flights) - 1)], RESULTS / "detect_examples.png")
     per_flight = [(seed, flight_detection(det, f))
@@ -257,6 +285,9 @@ def main() -> None:
         if det.tip_shift:
             row["detected_tuned_unshifted"] = fit(
                 flight, ["--from-images", *model, *DETECTED_OPTIONS, "--tip-shift", "0"])
+        if det.zoom:
+            row["detected_tuned_unzoomed"] = fit(
+                flight, ["--from-images", *model, *DETECTED_OPTIONS, "--no-zoom"])
         rows.append(row)
         print(f"seed {seed}: initial {ideal['before_position_m']:.2f} m; ideal heat-maps "
               f"{ideal['position_m']:.3f} m / {ideal['orientation_deg']:.3f} deg / "
@@ -277,16 +308,21 @@ def main() -> None:
                      + ", ".join(f"{v:.2f}x" for v in sm["ratio"][k].values())))
         print("  detected_tuned / ideal_tuned (same options): "
               + ", ".join(f"{q} {v:.2f}x" for q, v in sm["ratio_same_options"].items()))
-        if "ratio_same_options_unshifted" in sm:
-            print("  the same without the tip shift: " + ", ".join(
-                f"{q} {v:.2f}x" for q, v in sm["ratio_same_options_unshifted"].items()))
+        for k, what in (("unshifted", "the tip shift"), ("unzoomed", "test-time zoom")):
+            if "ratio_same_options_" + k in sm:
+                print(f"  the same without {what}: " + ", ".join(
+                    f"{q} {v:.2f}x" for q, v in sm["ratio_same_options_" + k].items()))
     RESULTS.mkdir(exist_ok=True)
     out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
-           "model": str(det.path), "flip": det.flip, "threshold": det.info.threshold,
+           "model": str(det.path), "flip": det.flip, "zoom": det.zoom,
+           "threshold": det.info.threshold,
            "tip_threshold": det.info.tip_threshold, "tip_shift_px": det.tip_shift,
            "heldout": {"n": args.heldout, "seed": HELDOUT_SEED, "px": "input", **m_input},
            "heldout_heatmap_px": {"n": args.heldout, "seed": HELDOUT_SEED, **m_grid},
-           "speed": sp,
+           "heldout_no_zoom": (None if m_unzoomed is None else
+                               {"n": args.heldout, "seed": HELDOUT_SEED, "px": "input",
+                                **m_unzoomed}),
+           "speed": sp, "speed_no_zoom": sp_unzoomed,
            "flight_detection": {"px": "photo", "rows": [{"seed": seed, **m}
                                                         for seed, m in per_flight],
                                 "spread": spread},

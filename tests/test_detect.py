@@ -11,7 +11,10 @@ import pytest
 
 from turbinefit.cli import main
 from turbinefit.detect import (
+    TIP,
     TIP_SHIFT_TAPER_PX,
+    ZOOM_MAX,
+    DetectOptions,
     HeatmapDetector,
     ModelInfo,
     default_model_path,
@@ -143,9 +146,10 @@ def test_detector_shifts_the_tip_channel_by_the_calibrated_amount(
         detector: HeatmapDetector, samples: list) -> None:
     info = detector.info
     assert detector.tip_shift == info.tip_shift_px and 0 < info.tip_shift_px < 2
-    plain = HeatmapDetector(threads=1, tip_shift=0)
+    shifted = HeatmapDetector(threads=1, zoom=False)
+    plain = HeatmapDetector(threads=1, tip_shift=0, zoom=False)
     for s in samples[:3]:
-        a, b = detector.detect_small(s.image), plain.detect_small(s.image)
+        a, b = shifted.detect_small(s.image), plain.detect_small(s.image)
         others = [0, 1, 2, 4, 5, 6]
         np.testing.assert_array_equal(a[others], b[others])
         i, j = np.unravel_index(int(np.argmax(b[2])), b[2].shape)
@@ -155,6 +159,61 @@ def test_detector_shifts_the_tip_channel_by_the_calibrated_amount(
         assert np.abs(a[3] - b[3]).max() > 1e-3
     with pytest.raises(ValueError, match="tip shift"):
         HeatmapDetector(threads=1, tip_shift=TIP_SHIFT_TAPER_PX)
+
+
+class _PoolNet:
+    """A stand-in for an output-scale-2 net that sees red dots: its blade channel is the
+    input's red channel, 2x2 mean-pooled; its tip channel is 1 where that is above 0.75,
+    i.e. it finds a tip only where the dot fills a heat-map pixel."""
+
+    def run(self, _: object, feeds: dict) -> list:
+        x = next(iter(feeds.values()))
+        n, _, h, w = x.shape
+        out = np.zeros((n, 7, h // 2, w // 2), np.float32)
+        out[:, 6] = x[:, 0].reshape(n, h // 2, 2, w // 2, 2).mean(axis=(2, 4))
+        out[:, TIP] = out[:, 6] > 0.75
+        return [out]
+
+
+@pytest.mark.parametrize("size", [(320, 240), (800, 600)])
+def test_zoom_finds_small_tips_again_where_they_are(size: tuple[int, int]) -> None:
+    w, h = size
+    dets = {z: DetectOptions(flip=False, tip_shift=0, zoom=z).detector(threads=1)
+            for z in (False, True)}
+    for d in dets.values():
+        d.session = _PoolNet()  # type: ignore[assignment]
+    img = np.zeros((h, w, 3), np.uint8)
+    img[:, :, 1] = 90  # a green sky: no channel but the tip sees it
+    k = w / 320  # photo px per input px
+    # a red dot of 2 x 3 input px, astride two heat-map pixels: 0.5 in the first pass
+    x0, y0, dw, dh = round(151 * k), round(97 * k), round(2 * k), round(3 * k)
+    img[y0:y0 + dh, x0:x0 + dw, 0] = 255
+    plain, zoomed = dets[False].detect_small(img), dets[True].detect_small(img)
+    others = [0, 1, 2, 4, 5, 6]
+    np.testing.assert_array_equal(zoomed[others], plain[others])
+    assert plain[TIP].max() == 0 and zoomed[TIP].max() > 0.3  # found in the zoom only
+    assert (zoomed[TIP] >= plain[TIP]).all()  # the larger of the two passes
+    box = dets[True].zoom_box(plain)
+    assert box is not None and box[2] == ZOOM_MAX
+    left, top, z = box
+    assert left <= x0 / k / 2 and left + 160 / z >= (x0 + dw) / k / 2  # the dot is in
+    assert top <= y0 / k / 2 and top + 120 / z >= (y0 + dh) / k / 2
+    # both passes put the dot where it is (heat-map px: centre (u + 0.5) / 2 - 0.5)
+    centre = ((x0 + dw / 2) / k / 2 - 0.5, (y0 + dh / 2) / k / 2 - 0.5)
+    def centroid(m: np.ndarray) -> tuple[float, float]:
+        i, j = np.mgrid[:m.shape[0], :m.shape[1]]
+        return float((j * m).sum() / m.sum()), float((i * m).sum() / m.sum())
+
+    np.testing.assert_allclose(centroid(plain[6]), centre, atol=0.1)
+    np.testing.assert_allclose(centroid(zoomed[TIP]), centre, atol=0.3)
+    # a turbine across the photo is not zoomed: the maps are the first pass's
+    img[10:20, 10:20, 0] = 255
+    img[220 * h // 240:230 * h // 240, 300 * w // 320:310 * w // 320, 0] = 255
+    again = dets[True].detect_small(img)
+    assert dets[True].zoom_box(again) is None
+    np.testing.assert_array_equal(again, dets[False].detect_small(img))
+    # nothing above the threshold: nothing to zoom
+    assert dets[True].zoom_box(np.zeros((7, 120, 160), np.float32)) is None
 
 
 def test_detection_metrics_of_perfect_maps(samples: list) -> None:
@@ -206,6 +265,22 @@ def test_detect_cli(tmp_path: Path, samples: list, detector: HeatmapDetector,
     np.testing.assert_allclose(np.load(own / "img0.npy"),
                                HeatmapDetector(threads=1, tip_shift=0).detect(img), atol=1e-5)
     assert np.abs(np.load(own / "img0.npy")[3] - np.load(out / "img0.npy")[3]).max() > 1e-3
+    # --no-zoom: no second pass on small turbines, as HeatmapDetector(zoom=False); a far
+    # view (a render shrunk to half size amid its own sky) is zoomed by default
+    from turbinefit.io.images import resize_image
+
+    far = np.pad(resize_image(samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
+                 mode="edge")
+    write_png(photos / "far.png", far)
+    unzoomed = HeatmapDetector(threads=1, zoom=False)
+    assert detector.zoom and detector.zoom_box(unzoomed.detect_small(far)) is not None
+    for flag, det in (([], detector), (["--no-zoom"], unzoomed)):
+        d = tmp_path / f"far{len(flag)}"
+        assert main(["detect", str(photos / "far.png"), "--out", str(d), "--quiet",
+                     *flag]) == 0
+        np.testing.assert_allclose(np.load(d / "far.npy"), det.detect(far), atol=1e-5)
+    assert np.abs(np.load(tmp_path / "far0" / "far.npy")[3]
+                  - np.load(tmp_path / "far1" / "far.npy")[3]).max() > 1e-3
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:

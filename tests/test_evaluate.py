@@ -111,6 +111,11 @@ def test_evaluate_cli_measures_the_shipped_model(labelled: Path, tmp_path: Path,
     assert main([*args, "--out", str(report), "--overwrite", "--tip-shift", "0"]) == 0
     assert json.loads(report.read_text())["tip_shift_px"] == 0.0
     assert "tip shift 0 px" in capsys.readouterr().out
+    # so are flip averaging and zoom, on for the shipped model; --no-zoom turns zoom off
+    assert data["flip"] is True and data["zoom"] is True
+    assert main([*args, "--out", str(report), "--overwrite", "--no-zoom"]) == 0
+    assert json.loads(report.read_text())["zoom"] is False
+    assert "flip averaging on, zoom off" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("bad", ["out_is_input", "wrong_size", "unknown_name", "bad_model"])

@@ -11,7 +11,10 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from turbinefit.detect import DetectOptions
 
 EXIT_BAD_INPUT = 2
 
@@ -290,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ONNX model (default: the shipped model)")
     d.add_argument("--threads", type=_positive_int, default=None,
                    help="inference threads (default: all cores)")
-    _add_flip_option(d)
+    _add_detect_options(d)
     d.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds only detect outputs")
     d.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -318,7 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--overwrite", action="store_true", help="replace an existing REPORT.json")
     v.add_argument("--threads", type=_positive_int, default=None,
                    help="inference threads (default: all cores)")
-    _add_flip_option(v)
+    _add_detect_options(v)
     v.add_argument("--quiet", action="store_true", help="no progress bar")
 
     # ---- train ------------------------------------------------------------------
@@ -398,19 +401,21 @@ def _add_flight_job_options(parser: argparse.ArgumentParser, dflt: Any, presets:
 
 
 def _add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
-    """--from-images, --model, --no-flip, --tip-shift, --no-plots (``fit`` and ``track``)."""
+    """--from-images, --model, --no-flip, --tip-shift, --no-zoom, --no-plots (``fit`` and
+    ``track``)."""
     parser.add_argument("--from-images", action="store_true", default=None,
                         help=f"{what} even if heatmaps/ exists (default: only when heatmaps/ "
                         "is absent)")
     parser.add_argument("--model", type=Path, default=None,
                         help="ONNX heat-map model for detection (default: the shipped one)")
-    _add_flip_option(parser)
+    _add_detect_options(parser)
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
 
 
-def _add_flip_option(parser: argparse.ArgumentParser) -> None:
-    """--no-flip and --tip-shift: args.flip is False when given, else None; args.tip_shift
-    a number when given, else None (the model's metadata decides both)."""
+def _add_detect_options(parser: argparse.ArgumentParser) -> None:
+    """--no-flip, --tip-shift and --no-zoom: args.flip and args.zoom are False when given,
+    else None; args.tip_shift a number when given, else None (the model's metadata decides
+    what is None; :func:`_detect_options` gathers them)."""
     parser.add_argument("--no-flip", dest="flip", action="store_false", default=None,
                         help="run the CNN once per photo instead of averaging its maps with "
                         "those of the mirror image (faster, less accurate; default: as the "
@@ -421,6 +426,18 @@ def _add_flip_option(parser: argparse.ArgumentParser) -> None:
                         "inboard bias; 0 keeps the net's own (default: the value "
                         "calibrated for the model, turbinefit.tip_shift_px in its "
                         "metadata)")
+    parser.add_argument("--no-zoom", dest="zoom", action="store_false", default=None,
+                        help="no second pass of the CNN on an enlarged crop around small "
+                        "turbines to find their blade tips (faster on far views, fewer tips "
+                        "found; default: as the model's metadata says, zoom for the shipped "
+                        "model)")
+
+
+def _detect_options(args: argparse.Namespace) -> DetectOptions:
+    """The :class:`~turbinefit.detect.DetectOptions` of :func:`_add_detect_options`."""
+    from turbinefit.detect import DetectOptions
+
+    return DetectOptions(flip=args.flip, tip_shift=args.tip_shift, zoom=args.zoom)
 
 
 def _add_fit_options(parser: argparse.ArgumentParser, dflt: Any, batch: bool = True) -> None:
@@ -531,7 +548,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
                             overwrite=args.overwrite, progress=progress,
                             config_path=args.config, from_images=args.from_images,
                             model=args.model, detect_progress=not args.quiet,
-                            flip=args.flip, tip_shift=args.tip_shift)
+                            detect_options=_detect_options(args))
     finally:
         if bar is not None:
             bar.close()
@@ -675,7 +692,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         report = track_folder(args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
                               overwrite=args.overwrite, progress=progress,
                               config_path=args.config, from_images=args.from_images,
-                              model=args.model, flip=args.flip, tip_shift=args.tip_shift)
+                              model=args.model, detect_options=_detect_options(args))
     finally:
         if bar is not None:
             bar.close()
@@ -775,8 +792,8 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     from turbinefit.pipeline import detect_images
 
     rep = detect_images(args.inputs, args.out_dir, args.model, overwrite=args.overwrite,
-                        progress=not args.quiet, threads=args.threads, flip=args.flip,
-                        tip_shift=args.tip_shift)
+                        progress=not args.quiet, threads=args.threads,
+                        options=_detect_options(args))
     if not args.quiet:
         print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
               f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
@@ -789,12 +806,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     rep = evaluate_labels(args.labels, args.images_dir, args.model, out=args.out,
                           overwrite=args.overwrite, match_px=args.match_px,
-                          progress=not args.quiet, threads=args.threads, flip=args.flip,
-                          tip_shift=args.tip_shift)
+                          progress=not args.quiet, threads=args.threads,
+                          options=_detect_options(args))
     m = rep.summary
     print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
           f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}, tip shift "
-          f"{rep.tip_shift:g} px); distances in "
+          f"{rep.tip_shift:g} px, flip averaging {'on' if rep.flip else 'off'}, zoom "
+          f"{'on' if rep.zoom else 'off'}); distances in "
           f"pixels of the photos resized to {rep.input_width} px wide, matches within "
           f"{args.match_px:g} px")
 

@@ -24,6 +24,7 @@ import numpy as np
 import yaml
 
 from turbinefit import __version__
+from turbinefit.detect import DetectOptions
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
@@ -188,8 +189,7 @@ def fit_folder(
     from_images: bool | None = None,
     model: str | os.PathLike[str] | None = None,
     detect_progress: bool = False,
-    flip: bool | None = None,
-    tip_shift: float | None = None,
+    detect_options: DetectOptions | None = None,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -206,9 +206,8 @@ def fit_folder(
 
     Heat-maps come from ``flight_dir/heatmaps/``, or are detected from the photos in
     ``flight_dir/images/`` (:func:`image_heatmap_source`, ONNX ``model`` or the shipped
-    one; ``flip`` and ``tip_shift`` as :class:`~turbinefit.detect.HeatmapDetector` takes
-    them) when ``from_images`` is True, or when it is None and the flight has photos but
-    no ``heatmaps/``. Nothing is written into ``flight_dir``.
+    one, with ``detect_options``) when ``from_images`` is True, or when it is None and
+    the flight has photos but no ``heatmaps/``. Nothing is written into ``flight_dir``.
     """
     cfg = config or FitConfig()
     flight_dir = Path(flight_dir)
@@ -219,8 +218,8 @@ def fit_folder(
     t0 = time.perf_counter()
     if from_images is None:
         from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
-    source = (image_heatmap_source(flight_dir, model, progress=detect_progress, flip=flip,
-                                   tip_shift=tip_shift)
+    source = (image_heatmap_source(flight_dir, model, progress=detect_progress,
+                                   options=detect_options)
               if from_images else None)
     flight = read_flight(flight_dir, heatmaps=source)
     timings["load"] = time.perf_counter() - t0
@@ -393,17 +392,17 @@ def _photo_size_error(img: np.ndarray, camera: PinholeCamera) -> str | None:
 def image_heatmap_source(flight_dir: str | os.PathLike[str],
                          model: str | os.PathLike[str] | None = None,
                          width: int = FIT_DETECT_WIDTH, progress: bool = False,
-                         threads: int | None = None, flip: bool | None = None,
-                         tip_shift: float | None = None) -> HeatmapSource:
+                         threads: int | None = None,
+                         options: DetectOptions | None = None) -> HeatmapSource:
     """A :data:`~turbinefit.io.flight_folder.HeatmapSource` detecting the heat-maps of
-    every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped).
+    every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped)
+    and ``options`` (default: as the model's metadata says).
 
     Photos must be at the size of ``camera.yaml``; heat-maps are made at that size, or at
     ``width`` px wide (camera resized to match) if the camera is wider.
     """
     from tqdm import tqdm
 
-    from turbinefit.detect import HeatmapDetector
     from turbinefit.heatmaps import HeatmapStack
     from turbinefit.io.images import read_image
 
@@ -411,7 +410,7 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
 
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
-        detector = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
+        detector = (options or DetectOptions()).detector(model, threads)
         cam = detection_camera(camera, width)
         maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
         for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
@@ -451,7 +450,7 @@ class DetectReport:
 def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                   model: str | os.PathLike[str] | None = None, *, overwrite: bool = False,
                   progress: bool = False, threads: int | None = None,
-                  flip: bool | None = None, tip_shift: float | None = None) -> DetectReport:
+                  options: DetectOptions | None = None) -> DetectReport:
     """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
     photo, ``<stem>.npy`` (float32 (7, H, W) at the photo's size, channels of
     :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
@@ -460,10 +459,12 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
     Everything is checked before any photo is processed: the inputs exist (an empty folder
     is an error), no two photos share a stem, the output is not an input folder, the model
     loads; a photo that cannot be decoded stops the job with nothing written.
+    ``options``: as :class:`~turbinefit.detect.DetectOptions` (default: as the model's
+    metadata says).
     """
     from tqdm import tqdm
 
-    from turbinefit.detect import HeatmapDetector, overlay, unique_stems
+    from turbinefit.detect import overlay, unique_stems
     from turbinefit.io.images import check_image, encode_png, list_images, read_image
 
     out = Path(out_dir)
@@ -473,7 +474,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
         check_image(p)
     _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
     check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
-    detector = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
+    detector = (options or DetectOptions()).detector(model, threads)
     t0 = time.perf_counter()
     t_det = 0.0
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
@@ -507,14 +508,16 @@ class EvaluateReport:
     tip_threshold: float
     out: Path | None
     tip_shift: float = 0.0
+    flip: bool = False
+    zoom: bool = False
 
 
 def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLike[str],
                     model: str | os.PathLike[str] | None = None, *,
                     out: str | os.PathLike[str] | None = None, overwrite: bool = False,
                     match_px: float = 5.0, progress: bool = False,
-                    threads: int | None = None, flip: bool | None = None,
-                    tip_shift: float | None = None) -> EvaluateReport:
+                    threads: int | None = None,
+                    options: DetectOptions | None = None) -> EvaluateReport:
     """Detection metrics of the ONNX ``model`` (default: shipped) on photos labelled with
     COCO keypoints (:func:`turbinefit.io.coco.read_coco_keypoints`; any number of
     turbines per photo, photos without any are negatives), and, with ``out``, a JSON
@@ -522,11 +525,11 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
 
     Everything is checked before any photo is run: the labels, every photo's header and
     size against its label entry, the model, and ``out`` (not an input; an existing file
-    only with ``overwrite``).
+    only with ``overwrite``). ``options``: as :class:`~turbinefit.detect.DetectOptions`
+    (default: as the model's metadata says).
     """
     from tqdm import tqdm
 
-    from turbinefit.detect import HeatmapDetector
     from turbinefit.eval.detection import InstanceStats
     from turbinefit.io.coco import read_coco_keypoints
     from turbinefit.io.images import check_image, read_image
@@ -549,7 +552,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("is a folder; the report is a JSON file", path=out_path)
         if out_path.exists() and not overwrite:
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
-    det = HeatmapDetector(model, threads, flip=flip, tip_shift=tip_shift)
+    det = (options or DetectOptions()).detector(model, threads)
     info = det.info
     stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
@@ -568,11 +571,13 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
         report = {"turbinefit_version": __version__, "model": str(det.path),
                   "labels": str(labels), "input_width": info.input_width,
                   "threshold": info.threshold, "tip_threshold": info.tip_threshold,
-                  "tip_shift_px": det.tip_shift, "match_px": match_px,  # NaN (undefined) is written as null
+                  "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
+                  "match_px": match_px,  # NaN (undefined) is written as null
                   "metrics": {k: v if math.isfinite(v) else None for k, v in summary.items()}}
         write_text_atomic(out_path, json.dumps(report, indent=2) + "\n")
     return EvaluateReport(summary, len(items), Path(det.path), info.input_width,
-                          info.threshold, info.tip_threshold, out_path, det.tip_shift)
+                          info.threshold, info.tip_threshold, out_path, det.tip_shift,
+                          det.flip, det.zoom)
 
 
 #: Everything ``track`` writes into its output folder: all that ``track --overwrite`` replaces.
@@ -647,8 +652,7 @@ def track_folder(
     config_path: str | os.PathLike[str] | None = None,
     from_images: bool | None = None,
     model: str | os.PathLike[str] | None = None,
-    flip: bool | None = None,
-    tip_shift: float | None = None,
+    detect_options: DetectOptions | None = None,
 ) -> TrackReport:
     """Replay the flight in ``flight_dir`` keyframe by keyframe through a :class:`Tracker`.
 
@@ -661,7 +665,8 @@ def track_folder(
     ground truth) and ``scene.png``.
 
     With photos (``images/`` and no ``heatmaps/``, or ``from_images``) each keyframe's photo
-    is read and run through the CNN as it arrives, inside the update (its latency includes
+    is read and run through the CNN (ONNX ``model`` or the shipped one, with
+    ``detect_options``) as it arrives, inside the update (its latency includes
     detection). ``progress(estimate, total)`` is called after every keyframe.
     """
     from turbinefit.solver.tracker import Tracker
@@ -676,7 +681,7 @@ def track_folder(
     photos: list[Path] = []
     detector: Callable[[np.ndarray], np.ndarray] | None = None
     if from_images:
-        flight, photos, detector = _photo_flight(flight_dir, model, flip, tip_shift)
+        flight, photos, detector = _photo_flight(flight_dir, model, detect_options)
     else:
         flight = read_flight(flight_dir)
     tracker = Tracker(flight.camera, flight.turbine, cfg, detector=detector)
@@ -763,12 +768,11 @@ def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:
 
 
 def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
-                  flip: bool | None = None, tip_shift: float | None = None
+                  options: DetectOptions | None = None
                   ) -> tuple[Flight, list[Path], Callable[[np.ndarray], np.ndarray]]:
     """The flight with its photos in place of heat-maps: the photos' paths, checked, and a
     detector making heat-maps at the fit's working size (see :func:`image_heatmap_source`).
     The flight's own heat-map stack is an empty placeholder."""
-    from turbinefit.detect import HeatmapDetector
     from turbinefit.heatmaps import HeatmapStack
     from turbinefit.io.images import check_image
 
@@ -785,7 +789,7 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
 
     flight = read_flight(flight_dir, heatmaps=source)
     # spinning off: the solver needs the cores between photos
-    detector = HeatmapDetector(model, spinning=False, flip=flip, tip_shift=tip_shift)
+    detector = (options or DetectOptions()).detector(model, spinning=False)
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:

@@ -97,12 +97,18 @@ def write_png(path: StrPath, image: U8Image, fsync: bool = True) -> Path:
     return write_bytes_atomic(path, encode_png(image), fsync=fsync)
 
 
-def resize_image(image: U8Image, width: int, height: int) -> U8Image:
-    """An RGB uint8 image resized to ``width`` x ``height`` (bilinear, antialiased)."""
-    if image.shape[1] == width and image.shape[0] == height:
+def resize_image(image: U8Image, width: int, height: int,
+                 box: tuple[float, float, float, float] | None = None) -> U8Image:
+    """An RGB uint8 image resized to ``width`` x ``height`` (bilinear, antialiased).
+
+    ``box`` = (left, top, right, bottom) [px, pixel edges: (0, 0) is the top-left
+    corner of the top-left pixel]: resize that part of the image only (a crop, by
+    fractional pixels if need be); None = the whole image.
+    """
+    if box is None and image.shape[1] == width and image.shape[0] == height:
         return image
     im = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB")
-    return np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR))
+    return np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR, box=box))
 
 
 def resize_maps(maps: NDArray[np.float32], width: int, height: int) -> NDArray[np.float32]:
