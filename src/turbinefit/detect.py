@@ -33,13 +33,13 @@ package, :func:`default_model_path`) on RGB photos of any size:
    with that pass's own hub), and inside the crop the tip channel becomes the larger of
    the two passes' values. Far turbines' blade tips are a pixel or two across at the
    input width; enlarged, the net finds more of them (held-out renders: recall +3 points
-   at the same precision; "From photos" in the README). A larger of two passes only adds
+   at about the same precision; "From photos" in the README). A larger of two passes only adds
    tips: taking the zoomed pass's alone loses some that the first pass found. The other
    six channels stay those of the first pass (zoomed lines are narrower ridges, hub,
    tower top and base gain under 0.1 px); zoomed tip blobs are narrower, ``sigma_px / z``.
    Nearby turbines in the photo widen the box, and then no zoom is made. It costs one
    more single pass of the net for each photo it zooms (a quarter of the held-out renders,
-   an eighth of a simulated flight's photos);
+   13-17 % of a simulated flight's photos);
 5. the padding is cut off and the maps are resized back to the photo's own size
    (bilinear, pixel centres aligned), float32 (7, H, W). Enlarging runs on onnxruntime
    (a one-node graph shipped as :data:`RESIZE_MODEL`, written by
