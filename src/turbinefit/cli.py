@@ -793,7 +793,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
 
     rep = detect_images(args.inputs, args.out_dir, args.model, overwrite=args.overwrite,
                         progress=not args.quiet, threads=args.threads,
-                        options=_detect_options(args))
+                        detect_options=_detect_options(args))
     if not args.quiet:
         print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
               f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
@@ -807,7 +807,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     rep = evaluate_labels(args.labels, args.images_dir, args.model, out=args.out,
                           overwrite=args.overwrite, match_px=args.match_px,
                           progress=not args.quiet, threads=args.threads,
-                          options=_detect_options(args))
+                          detect_options=_detect_options(args))
     m = rep.summary
     print(f"{rep.photos} photo(s), {int(m['turbines'])} labelled turbine(s); model {rep.model} "
           f"(thresholds {rep.threshold:.2f}, tips {rep.tip_threshold:.2f}, tip shift "

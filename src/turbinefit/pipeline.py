@@ -219,7 +219,7 @@ def fit_folder(
     if from_images is None:
         from_images = not has_heatmaps(flight_dir) and (flight_dir / IMAGE_DIR).is_dir()
     source = (image_heatmap_source(flight_dir, model, progress=detect_progress,
-                                   options=detect_options)
+                                   detect_options=detect_options)
               if from_images else None)
     flight = read_flight(flight_dir, heatmaps=source)
     timings["load"] = time.perf_counter() - t0
@@ -393,10 +393,10 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
                          model: str | os.PathLike[str] | None = None,
                          width: int = FIT_DETECT_WIDTH, progress: bool = False,
                          threads: int | None = None,
-                         options: DetectOptions | None = None) -> HeatmapSource:
+                         detect_options: DetectOptions | None = None) -> HeatmapSource:
     """A :data:`~turbinefit.io.flight_folder.HeatmapSource` detecting the heat-maps of
     every keyframe from ``flight_dir/images/`` with the ONNX ``model`` (default: shipped)
-    and ``options`` (default: as the model's metadata says).
+    and ``detect_options`` (default: as the model's metadata says).
 
     Photos must be at the size of ``camera.yaml``; heat-maps are made at that size, or at
     ``width`` px wide (camera resized to match) if the camera is wider.
@@ -410,7 +410,7 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
 
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
-        detector = (options or DetectOptions()).detector(model, threads)
+        detector = (detect_options or DetectOptions()).detector(model, threads)
         cam = detection_camera(camera, width)
         maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
         for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
@@ -450,7 +450,7 @@ class DetectReport:
 def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                   model: str | os.PathLike[str] | None = None, *, overwrite: bool = False,
                   progress: bool = False, threads: int | None = None,
-                  options: DetectOptions | None = None) -> DetectReport:
+                  detect_options: DetectOptions | None = None) -> DetectReport:
     """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
     photo, ``<stem>.npy`` (float32 (7, H, W) at the photo's size, channels of
     :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
@@ -459,8 +459,8 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
     Everything is checked before any photo is processed: the inputs exist (an empty folder
     is an error), no two photos share a stem, the output is not an input folder, the model
     loads; a photo that cannot be decoded stops the job with nothing written.
-    ``options``: as :class:`~turbinefit.detect.DetectOptions` (default: as the model's
-    metadata says).
+    ``detect_options``: as :class:`~turbinefit.detect.DetectOptions` (default: as the
+    model's metadata says).
     """
     from tqdm import tqdm
 
@@ -474,7 +474,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
         check_image(p)
     _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
     check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
-    detector = (options or DetectOptions()).detector(model, threads)
+    detector = (detect_options or DetectOptions()).detector(model, threads)
     t0 = time.perf_counter()
     t_det = 0.0
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
@@ -517,7 +517,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
                     out: str | os.PathLike[str] | None = None, overwrite: bool = False,
                     match_px: float = 5.0, progress: bool = False,
                     threads: int | None = None,
-                    options: DetectOptions | None = None) -> EvaluateReport:
+                    detect_options: DetectOptions | None = None) -> EvaluateReport:
     """Detection metrics of the ONNX ``model`` (default: shipped) on photos labelled with
     COCO keypoints (:func:`turbinefit.io.coco.read_coco_keypoints`; any number of
     turbines per photo, photos without any are negatives), and, with ``out``, a JSON
@@ -525,8 +525,8 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
 
     Everything is checked before any photo is run: the labels, every photo's header and
     size against its label entry, the model, and ``out`` (not an input; an existing file
-    only with ``overwrite``). ``options``: as :class:`~turbinefit.detect.DetectOptions`
-    (default: as the model's metadata says).
+    only with ``overwrite``). ``detect_options``: as
+    :class:`~turbinefit.detect.DetectOptions` (default: as the model's metadata says).
     """
     from tqdm import tqdm
 
@@ -552,7 +552,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("is a folder; the report is a JSON file", path=out_path)
         if out_path.exists() and not overwrite:
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
-    det = (options or DetectOptions()).detector(model, threads)
+    det = (detect_options or DetectOptions()).detector(model, threads)
     info = det.info
     stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
@@ -768,7 +768,7 @@ def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:
 
 
 def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
-                  options: DetectOptions | None = None
+                  detect_options: DetectOptions | None = None
                   ) -> tuple[Flight, list[Path], Callable[[np.ndarray], np.ndarray]]:
     """The flight with its photos in place of heat-maps: the photos' paths, checked, and a
     detector making heat-maps at the fit's working size (see :func:`image_heatmap_source`).
@@ -789,7 +789,7 @@ def _photo_flight(flight_dir: Path, model: str | os.PathLike[str] | None,
 
     flight = read_flight(flight_dir, heatmaps=source)
     # spinning off: the solver needs the cores between photos
-    detector = (options or DetectOptions()).detector(model, spinning=False)
+    detector = (detect_options or DetectOptions()).detector(model, spinning=False)
     camera, cam, paths = found["camera"], found["cam"], found["paths"]
 
     def detect(img: np.ndarray) -> np.ndarray:
