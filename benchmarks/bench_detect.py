@@ -191,11 +191,12 @@ def fit(flight: Path, extra: list[str]) -> dict:
             "before_position_m": s["accuracy"]["before"]["position_error_m"]}
 
 
-def speed(det: HeatmapDetector, flight: Path, count: int = 100, rounds: int = 5
-          ) -> dict[str, Any]:
+def speed(det: HeatmapDetector, flight: Path, count: int = 100, rounds: int = 5,
+          first_pass: HeatmapDetector | None = None) -> dict[str, Any]:
     """Photos per second of ``det.detect`` on the first ``count`` photos of ``flight``:
     the median and the best of ``rounds`` runs (a 2-core machine's other work makes single
-    runs vary by +-10 %), and one run with PNG decoding; with the share of photos zoomed."""
+    runs vary by +-10 %), and one run with PNG decoding; with the number of photos ``det``
+    zoomed, judged on the maps of ``first_pass`` (``det`` without zoom; None: none)."""
     photos = sorted((flight / "images").iterdir())[:count]
     imgs = [read_image(p) for p in photos]
     for im in imgs[:5]:
@@ -210,7 +211,8 @@ def speed(det: HeatmapDetector, flight: Path, count: int = 100, rounds: int = 5
     for p in photos:
         det.detect(read_image(p))
     t_all = time.perf_counter() - t0
-    zoomed = sum(det.zoom and det.zoom_box(det.detect_small(im)) is not None for im in imgs)
+    zoomed = (0 if first_pass is None or not det.zoom else
+              sum(det.zoom_box(first_pass.detect_small(im)) is not None for im in imgs))
     return {"images": len(imgs), "size": [int(imgs[0].shape[1]), int(imgs[0].shape[0])],
             "images_per_s": round(statistics.median(rates), 1),
             "images_per_s_best": round(max(rates), 1),
@@ -251,19 +253,19 @@ def main() -> None:
     if det.info.output_scale != 1:
         print(f"the same in pixels of the heat-map grid (1/{det.info.output_scale}):")
         print_heldout(m_grid, "heat-map px")
-    unzoomed = HeatmapDetector(args.model, zoom=False)
-    m_unzoomed = heldout_metrics(unzoomed, args.heldout)[0] if det.zoom else None
+    unzoomed = HeatmapDetector(args.model, zoom=False) if det.zoom else None
+    m_unzoomed = None if unzoomed is None else heldout_metrics(unzoomed, args.heldout)[0]
     if m_unzoomed is not None:
         print(f"the same without test-time zoom, in pixels of the {size} input photos:")
         print_heldout(m_unzoomed, f"{size} px")
 
     flights = [simulate(s, args.keyframes) for s in args.seeds]
-    sp = speed(det, flights[0])
+    sp = speed(det, flights[0], first_pass=unzoomed)
     print(f"inference at {sp['size'][0]}x{sp['size'][1]}: {sp['images_per_s']} images/s "
           f"(median of 5 runs, best {sp['images_per_s_best']}; "
           f"{sp['images_per_s_with_png_decode']} with PNG decoding; {sp['zoomed']} of "
           f"{sp['images']} photos zoomed), {os.cpu_count()} cores")
-    sp_unzoomed = speed(unzoomed, flights[0]) if det.zoom else None
+    sp_unzoomed = None if unzoomed is None else speed(unzoomed, flights[0])
     del unzoomed  # its onnxruntime threads would spin against the fits' subprocesses
     if sp_unzoomed is not None:
         print(f"  without zoom: {sp_unzoomed['images_per_s']} images/s (best "

@@ -376,17 +376,16 @@ class HeatmapDetector:
         h, w = maps.shape[1:]
         bw, bh = w / z, h / z
         sx, sy = image.shape[1] / w, image.shape[0] / h  # photo px per heat-map px
-        # the crop at the photo's model input size: its maps are (h, w) over the crop
+        # the crop, of the photo's aspect, at the photo's model input size: its maps are
+        # (h, w) over the crop, z of them per heat-map pixel of the photo
         crop = self._maps(image, False, (left * sx, top * sy, (left + bw) * sx,
                                          (top + bh) * sy))[TIP]
-        zx, zy = crop.shape[1] / bw, crop.shape[0] / bh
         i0, j0 = int(top), int(left)
         i1, j1 = min(math.ceil(top + bh), h), min(math.ceil(left + bw), w)
         gi, gj = np.mgrid[i0:i1, j0:j1].astype(np.float32)
-        v = (gi + np.float32(0.5 - top)) * np.float32(zy) - np.float32(0.5)
-        u = (gj + np.float32(0.5 - left)) * np.float32(zx) - np.float32(0.5)
-        inside = ((u >= -0.5) & (u <= crop.shape[1] - 0.5)
-                  & (v >= -0.5) & (v <= crop.shape[0] - 0.5))
+        v = (gi + np.float32(0.5 - top)) * np.float32(z) - np.float32(0.5)
+        u = (gj + np.float32(0.5 - left)) * np.float32(z) - np.float32(0.5)
+        inside = (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
         box = maps[TIP, i0:i1, j0:j1]
         zv = ndimage.map_coordinates(crop, [v[inside], u[inside]], order=1, mode="nearest")
         box[inside] = np.maximum(box[inside], zv)
