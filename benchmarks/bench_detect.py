@@ -14,8 +14,10 @@
   input pixels also without it (``HeatmapDetector(zoom=False)``).
 * **Inference speed** at 320 x 240: :meth:`HeatmapDetector.detect` (resize to the input
   size, the net, test-time zoom where it applies, resize of the 7 maps back to 320 x
-  240) on the first 100 photos of the first flight, all cores: median and best of 5
-  runs, and without zoom.
+  240) on the first 100 photos of the first flight, by a :class:`DetectorPool` (one
+  single-threaded detector per core, as ``detect``, ``evaluate`` and ``fit
+  --from-images`` run): median and best of 5 runs; one detector on all cores, one photo
+  at a time (as ``track`` runs); and both without zoom.
 * **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),
   fitted from the ideal heat-maps and from the heat-maps detected in the photos
   (``turbinefit fit --from-images``), each with the default options and with
@@ -51,12 +53,13 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from turbinefit.detect import HeatmapDetector
+from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
 from turbinefit.eval.detection import DetectionStats
 from turbinefit.io.flight_folder import keyframe_images, read_flight
 from turbinefit.io.images import read_image
@@ -78,37 +81,39 @@ VARIANTS = ("detected_tuned_unshifted", "detected_tuned_unzoomed")
 OPTION_SEEDS = frozenset(range(6))
 
 
-def heldout_metrics(det: HeatmapDetector, n: int) -> tuple[dict[str, float], dict[str, float]]:
+def heldout_metrics(pool: DetectorPool, n: int) -> tuple[dict[str, float], dict[str, float]]:
     """Metrics in pixels of the model's input photos and of its heat-map grid."""
-    scale = det.info.output_scale
+    info = pool.detector.info
+    scale = info.output_scale
     data = build_dataset(DATA / f"heldout-v{DATA_VERSION}-n{n}-s{HELDOUT_SEED}-x{scale}",
                          DatasetSpec(n, HELDOUT_SEED, image_scale=scale))
-    both = [DetectionStats(threshold=det.info.threshold, tip_threshold=det.info.tip_threshold,
+    both = [DetectionStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                            px_scale=k) for k in (scale, 1)]
-    for i in range(n):
-        pred = det.detect_small(np.asarray(data.images[i]))
+    preds = pool.map(lambda det, i: det.detect_small(np.asarray(data.images[i])), range(n))
+    for i, pred in enumerate(preds):
         for stats in both:
             stats.add(pred, np.asarray(data.targets[i]) / 255.0, np.asarray(data.points[i]),
                       np.asarray(data.visible[i]), np.asarray(data.in_sight[i]))
     return both[0].summary(), both[1].summary()
 
 
-def flight_detection(det: HeatmapDetector, flight: Path) -> dict[str, float]:
+def flight_detection(pool: DetectorPool, flight: Path) -> dict[str, float]:
     """:class:`DetectionStats` of the model on every photo of a simulated flight, against
     its ideal heat-maps and its ground-truth points (the flights :func:`simulate` makes,
     with the default geometry), in pixels of the photos."""
     fl = read_flight(flight)
     assert fl.gt_turbine is not None and fl.gt_world_T_cam is not None
     world_p, _ = model_points(fl.gt_turbine.to_vector(), SimConfig().geometry)
-    scale = det.info.output_scale  # the NMS window, 7 grid px, in photo px
-    stats = DetectionStats(threshold=det.info.threshold, tip_threshold=det.info.tip_threshold,
+    info = pool.detector.info
+    scale = info.output_scale  # the NMS window, 7 grid px, in photo px
+    stats = DetectionStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                            nms_px=DetectionStats.nms_px * scale - (scale - 1))
     photos = keyframe_images(flight, fl.timestamps)
-    for k, photo in enumerate(photos):
+    preds = pool.map(lambda det, photo: det.detect(read_image(photo)), photos)
+    for k, pred in enumerate(preds):
         uv, front, _ = fl.camera.project_unbounded(fl.gt_world_T_cam[k].inverse().apply(world_p))
         visible = front & fl.camera.in_image(uv)
-        stats.add(det.detect(read_image(photo)), np.asarray(fl.heatmaps[k]),
-                  np.where(np.isfinite(uv), uv, 0.0), visible)
+        stats.add(pred, np.asarray(fl.heatmaps[k]), np.where(np.isfinite(uv), uv, 0.0), visible)
     return stats.summary()
 
 
@@ -191,33 +196,48 @@ def fit(flight: Path, extra: list[str]) -> dict:
             "before_position_m": s["accuracy"]["before"]["position_error_m"]}
 
 
-def speed(det: HeatmapDetector, flight: Path, count: int = 100, rounds: int = 5,
-          first_pass: HeatmapDetector | None = None) -> dict[str, Any]:
-    """Photos per second of ``det.detect`` on the first ``count`` photos of ``flight``:
-    the median and the best of ``rounds`` runs (a 2-core machine's other work makes single
-    runs vary by +-10 %), and one run with PNG decoding; with the number of photos ``det``
-    zoomed, judged on the maps of ``first_pass`` (``det`` without zoom; None: none)."""
-    photos = sorted((flight / "images").iterdir())[:count]
-    imgs = [read_image(p) for p in photos]
-    for im in imgs[:5]:
-        det.detect(im)
+def _rates(run: Callable[[], object], count: int, rounds: int) -> tuple[float, float]:
+    """Median and best photos/s of ``rounds`` calls of ``run`` (``count`` photos each)."""
     rates = []
     for _ in range(rounds):
         t0 = time.perf_counter()
-        for im in imgs:
-            det.detect(im)
-        rates.append(len(imgs) / (time.perf_counter() - t0))
+        run()
+        rates.append(count / (time.perf_counter() - t0))
+    return round(statistics.median(rates), 1), round(max(rates), 1)
+
+
+def speed(pool: DetectorPool, flight: Path, count: int = 100, rounds: int = 5,
+          first_pass: HeatmapDetector | None = None) -> dict[str, Any]:
+    """Photos per second of the pool's ``detect`` (one photo per core at once, as
+    ``detect``, ``evaluate`` and ``fit --from-images`` run) on the first ``count`` photos of
+    ``flight``: the median and the best of ``rounds`` runs (a 2-core machine's other work
+    makes single runs vary by +-10 %), and one run with PNG decoding; one detector on all
+    cores, one photo at a time (as ``track`` runs); with the number of photos zoomed,
+    judged on the maps of ``first_pass`` (the detector without zoom; None: none)."""
+    photos = sorted((flight / "images").iterdir())[:count]
+    imgs = [read_image(p) for p in photos]
+
+    def detect(det: HeatmapDetector, im: np.ndarray) -> np.ndarray:
+        return det.detect(im)
+
+    list(pool.map(detect, imgs[:10]))
+    median, best = _rates(lambda: list(pool.map(detect, imgs)), len(imgs), rounds)
     t0 = time.perf_counter()
-    for p in photos:
-        det.detect(read_image(p))
+    list(pool.map(lambda det, p: det.detect(read_image(p)), photos))
     t_all = time.perf_counter() - t0
+    one = HeatmapDetector(pool.detector.path, flip=pool.detector.flip,
+                          tip_shift=pool.detector.tip_shift, zoom=pool.detector.zoom)
+    for im in imgs[:5]:
+        one.detect(im)
+    one_median, one_best = _rates(lambda: [one.detect(im) for im in imgs], len(imgs), rounds)
+    det = pool.detector
     zoomed = (0 if first_pass is None or not det.zoom else
               sum(det.zoom_box(first_pass.detect_small(im)) is not None for im in imgs))
     return {"images": len(imgs), "size": [int(imgs[0].shape[1]), int(imgs[0].shape[0])],
-            "images_per_s": round(statistics.median(rates), 1),
-            "images_per_s_best": round(max(rates), 1),
+            "workers": pool.workers, "images_per_s": median, "images_per_s_best": best,
             "images_per_s_with_png_decode": round(len(imgs) / t_all, 1),
-            "zoomed": zoomed}
+            "one_at_a_time_images_per_s": one_median,
+            "one_at_a_time_images_per_s_best": one_best, "zoomed": zoomed}
 
 
 def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
@@ -241,38 +261,42 @@ def main() -> None:
     args = ap.parse_args()
     DATA.mkdir(exist_ok=True)
     RESULTS.mkdir(exist_ok=True)
-    det = HeatmapDetector(args.model)
+    pool = DetectorPool(args.model)
+    det = pool.detector
     print(f"model {det.path} (thresholds {det.info.threshold:.2f}, tips {det.info.tip_threshold:.2f}, "
           f"input {det.info.input_width} px, flip averaging {'on' if det.flip else 'off'}, "
           f"tip shift {det.tip_shift:g} px, zoom {'on' if det.zoom else 'off'})")
 
-    m_input, m_grid = heldout_metrics(det, args.heldout)
+    m_input, m_grid = heldout_metrics(pool, args.heldout)
     size = f"{det.info.input_width}x{det.info.input_height}"
     print(f"held-out renders ({args.heldout}), in pixels of the {size} input photos:")
     print_heldout(m_input, f"{size} px")
     if det.info.output_scale != 1:
         print(f"the same in pixels of the heat-map grid (1/{det.info.output_scale}):")
         print_heldout(m_grid, "heat-map px")
-    unzoomed = HeatmapDetector(args.model, zoom=False) if det.zoom else None
+    unzoomed = DetectorPool(args.model, options=DetectOptions(zoom=False)) if det.zoom else None
     m_unzoomed = None if unzoomed is None else heldout_metrics(unzoomed, args.heldout)[0]
     if m_unzoomed is not None:
         print(f"the same without test-time zoom, in pixels of the {size} input photos:")
         print_heldout(m_unzoomed, f"{size} px")
 
     flights = [simulate(s, args.keyframes) for s in args.seeds]
-    sp = speed(det, flights[0], first_pass=unzoomed)
-    print(f"inference at {sp['size'][0]}x{sp['size'][1]}: {sp['images_per_s']} images/s "
-          f"(median of 5 runs, best {sp['images_per_s_best']}; "
+    sp = speed(pool, flights[0], first_pass=None if unzoomed is None else unzoomed.detector)
+    print(f"inference at {sp['size'][0]}x{sp['size'][1]}: {sp['images_per_s']} images/s, "
+          f"{sp['workers']} photos at once (median of 5 runs, best {sp['images_per_s_best']}; "
           f"{sp['images_per_s_with_png_decode']} with PNG decoding; {sp['zoomed']} of "
-          f"{sp['images']} photos zoomed), {os.cpu_count()} cores")
+          f"{sp['images']} photos zoomed), {os.cpu_count()} cores; one photo at a time on "
+          f"all cores {sp['one_at_a_time_images_per_s']} images/s (best "
+          f"{sp['one_at_a_time_images_per_s_best']})")
     sp_unzoomed = None if unzoomed is None else speed(unzoomed, flights[0])
-    del unzoomed  # its onnxruntime threads would spin against the fits' subprocesses
+    del unzoomed
     if sp_unzoomed is not None:
         print(f"  without zoom: {sp_unzoomed['images_per_s']} images/s (best "
-              f"{sp_unzoomed['images_per_s_best']})")
+              f"{sp_unzoomed['images_per_s_best']}; one at a time "
+              f"{sp_unzoomed['one_at_a_time_images_per_s']})")
 
     example_sheet(det, flights[min(1, len(flights) - 1)], RESULTS / "detect_examples.png")
-    per_flight = [(seed, flight_detection(det, f))
+    per_flight = [(seed, flight_detection(pool, f))
                   for seed, f in zip(args.seeds, flights, strict=True)]
     spread = print_flight_detection(per_flight)
     rows = []

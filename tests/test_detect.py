@@ -4,6 +4,7 @@ fit from photos, and bad input (photos, models, folders)."""
 from __future__ import annotations
 
 import shutil
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from turbinefit.detect import (
     TIP_SHIFT_TAPER_PX,
     ZOOM_MAX,
     DetectOptions,
+    DetectorPool,
     HeatmapDetector,
     ModelInfo,
     default_model_path,
@@ -216,6 +218,69 @@ def test_zoom_finds_small_tips_again_where_they_are(size: tuple[int, int]) -> No
     assert dets[True].zoom_box(np.zeros((7, 120, 160), np.float32)) is None
 
 
+def test_pool_gives_one_detectors_maps_in_order(detector: HeatmapDetector,
+                                                 samples: list) -> None:
+    from turbinefit.io.images import resize_image
+
+    far = np.pad(resize_image(samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
+                 mode="edge")  # zoomed: the second pass runs on the pool's threads too
+    images = [s.image for s in samples] + [far, samples[1].image[:, ::-1].copy()]
+    pool = DetectOptions().pool(workers=2)
+    assert pool.workers == 2 and pool.detector.zoom and pool.detector.flip
+    assert detector.zoom_box(detector.detect_small(far)) is not None
+    threads: set[str] = set()
+
+    def detect(det: HeatmapDetector, im: np.ndarray) -> np.ndarray:
+        threads.add(threading.current_thread().name)
+        return det.detect(im)
+
+    got = list(pool.map(detect, images))
+    assert len(got) == len(images) and len(threads) == 2
+    for im, maps in zip(images, got, strict=True):
+        np.testing.assert_array_equal(maps, detector.detect(im))  # bit for bit, in order
+    # one worker: the calling thread, the same maps
+    one = DetectorPool(workers=1, options=DetectOptions(zoom=False))
+    assert list(one.map(lambda d, i: threading.current_thread().name, [0])) == [
+        threading.current_thread().name]
+    np.testing.assert_array_equal(next(one.map(lambda d, im: d.detect(im), images[:1])),
+                                  HeatmapDetector(threads=1, zoom=False).detect(images[0]))
+    with pytest.raises(ValueError, match="at least 1"):
+        DetectorPool(workers=-1)
+
+
+def test_pool_raises_the_first_error_in_order_and_starts_nothing_after_it() -> None:
+    pool = DetectorPool(workers=2, options=DetectOptions(zoom=False))
+    started: list[int] = []
+    lock = threading.Lock()
+    release = threading.Event()
+
+    def work(det: HeatmapDetector, i: int) -> int:
+        with lock:
+            started.append(i)
+        if i == 3:
+            raise KeyError("photo 3")
+        if i == 4:  # a later failure, while 3's is pending: 3's is the one raised
+            release.wait(5)
+            raise ValueError("photo 4")
+        return 10 * i
+
+    results = []
+    with pytest.raises(KeyError, match="photo 3"):
+        for r in pool.map(work, range(100)):
+            results.append(r)
+            if r == 20:
+                release.set()
+    assert results == [0, 10, 20]
+    # at most 2 x 2 items are worked on ahead of the one yielded
+    assert max(started) <= 3 + 2 * pool.workers and len(started) < 100
+    # stopping early starts nothing more
+    started.clear()
+    it = pool.map(work, range(5, 100))
+    assert next(it) == 50
+    it.close()
+    assert len(started) <= 1 + 2 * pool.workers
+
+
 def test_detection_metrics_of_perfect_maps(samples: list) -> None:
     st = DetectionStats(threshold=0.5)
     for s in samples:
@@ -324,6 +389,13 @@ def test_detect_bad_input(tmp_path: Path, samples: list, capsys: pytest.CaptureF
     trunc = tmp_path / "trunc.png"
     trunc.write_bytes(good.read_bytes()[:200])
     assert main(["detect", str(trunc), "--out", str(out)]) == 2
+    _one_line_error(capsys, "trunc.png")
+    assert not out.exists()
+    # found by a worker of the pool amid good photos: the same one error, nothing written
+    for k in range(3):
+        shutil.copy(good, tmp_path / f"good{k}.png")
+    assert main(["detect", *(str(tmp_path / f"good{k}.png") for k in range(3)), str(trunc),
+                 "--out", str(out), "--threads", "2"]) == 2
     _one_line_error(capsys, "trunc.png")
     assert not out.exists()
     # an empty folder, a missing file

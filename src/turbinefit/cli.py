@@ -292,7 +292,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--model", type=Path, default=None,
                    help="ONNX model (default: the shipped model)")
     d.add_argument("--threads", type=_positive_int, default=None,
-                   help="inference threads (default: all cores)")
+                   help="photos detected at once, one inference thread each "
+                   "(default: one per core)")
     _add_detect_options(d)
     d.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds only detect outputs")
@@ -320,7 +321,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write the metrics as JSON (atomically)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing REPORT.json")
     v.add_argument("--threads", type=_positive_int, default=None,
-                   help="inference threads (default: all cores)")
+                   help="photos detected at once, one inference thread each "
+                   "(default: one per core)")
     _add_detect_options(v)
     v.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -796,8 +798,8 @@ def _cmd_detect(args: argparse.Namespace) -> int:
                         detect_options=_detect_options(args))
     if not args.quiet:
         print(f"detected {rep.count} photo(s) in {rep.seconds:.2f} s "
-              f"({rep.count / max(rep.detect_seconds, 1e-9):.0f} photos/s inference); "
-              f"wrote {rep.out_dir}")
+              f"({rep.count / max(rep.seconds, 1e-9):.0f} photos/s with reading and "
+              f"writing, {rep.workers} at once); wrote {rep.out_dir}")
     return 0
 
 

@@ -18,13 +18,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
 
 from turbinefit import __version__
-from turbinefit.detect import DetectOptions
+from turbinefit.detect import DetectOptions, HeatmapDetector
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
@@ -49,6 +49,9 @@ from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
 from turbinefit.solver.tracker import KeyframeError, TrackerConfig, TrackEstimate
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams
+
+if TYPE_CHECKING:
+    from turbinefit.io.coco import LabelledImage
 
 #: Everything ``fit`` writes into its output folder: all that ``fit --overwrite`` replaces.
 FIT_ENTRIES = frozenset({"keyframes.txt", "turbine.yaml", "config.yaml", "summary.json",
@@ -399,7 +402,9 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
     and ``detect_options`` (default: as the model's metadata says).
 
     Photos must be at the size of ``camera.yaml``; heat-maps are made at that size, or at
-    ``width`` px wide (camera resized to match) if the camera is wider.
+    ``width`` px wide (camera resized to match) if the camera is wider. ``threads``:
+    photos detected at once, one inference thread each (:class:`~turbinefit.detect.
+    DetectorPool`; None = one per core).
     """
     from tqdm import tqdm
 
@@ -410,16 +415,20 @@ def image_heatmap_source(flight_dir: str | os.PathLike[str],
 
     def source(camera: PinholeCamera, timestamps: np.ndarray) -> tuple[PinholeCamera, HeatmapStack]:
         paths = keyframe_images(root, timestamps)
-        detector = (detect_options or DetectOptions()).detector(model, threads)
+        pool = (detect_options or DetectOptions()).pool(model, threads)
         cam = detection_camera(camera, width)
-        maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
-        for k, p in enumerate(tqdm(paths, desc="detecting", unit="img", leave=False,
-                                   disable=None if progress else True)):
+
+        def detect(det: HeatmapDetector, p: Path) -> np.ndarray:
             img = read_image(p)
             why = _photo_size_error(img, camera)
             if why is not None:
                 raise InputError(why, path=p)
-            maps[k] = detector.detect(img, size=(cam.width, cam.height))
+            return det.detect(img, size=(cam.width, cam.height))
+
+        maps = np.empty((len(paths), 7, cam.height, cam.width), dtype=np.float32)
+        for k, m in enumerate(tqdm(pool.map(detect, paths), total=len(paths), desc="detecting",
+                                   unit="img", leave=False, disable=None if progress else True)):
+            maps[k] = m
         return cam, HeatmapStack(maps)
 
     return source
@@ -438,13 +447,14 @@ def _only_detect_outputs(folder: Path) -> str | None:
 
 @dataclass
 class DetectReport:
-    """What :func:`detect_images` did: ``count`` photos in ``seconds`` (detection only, no
-    file I/O: ``detect_seconds``) written to ``out_dir``."""
+    """What :func:`detect_images` did: ``count`` photos detected, their outputs written to
+    ``out_dir``, in ``seconds`` (wall clock: checks, decoding, detection and writing) by
+    ``workers`` photos at once."""
 
     out_dir: Path
     count: int
     seconds: float
-    detect_seconds: float
+    workers: int = 1
 
 
 def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
@@ -460,7 +470,8 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
     is an error), no two photos share a stem, the output is not an input folder, the model
     loads; a photo that cannot be decoded stops the job with nothing written.
     ``detect_options``: as :class:`~turbinefit.detect.DetectOptions` (default: as the
-    model's metadata says).
+    model's metadata says). ``threads``: photos detected (and written) at once, one
+    inference thread each (:class:`~turbinefit.detect.DetectorPool`; None = one per core).
     """
     from tqdm import tqdm
 
@@ -474,23 +485,25 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
         check_image(p)
     _check_out_dir(out, [p for p in inputs if Path(p).is_dir()] + paths)
     check_output_dir(out, overwrite, _only_detect_outputs, _OVERWRITE_HINT)
-    detector = (detect_options or DetectOptions()).detector(model, threads)
+    pool = (detect_options or DetectOptions()).pool(model, threads)
     t0 = time.perf_counter()
-    t_det = 0.0
     with atomic_output_dir(out, overwrite=overwrite, may_replace=_only_detect_outputs) as tmp:
-        # disable=None: no bar when stderr is not a terminal
-        for p in tqdm(paths, desc="detecting", unit="img", disable=None if progress else True):
+
+        def detect(det: HeatmapDetector, p: Path) -> None:
             img = read_image(p)
-            t1 = time.perf_counter()
-            maps = detector.detect(img)
-            t_det += time.perf_counter() - t1
+            maps = det.detect(img)
             try:
                 with open(tmp / f"{p.stem}.npy", "wb") as f:
                     np.save(f, maps, allow_pickle=False)
                 (tmp / f"{p.stem}.png").write_bytes(encode_png(overlay(img, maps)))
             except OSError as e:
                 raise InputError(f"cannot write: {e.strerror or e}", path=out / p.stem) from e
-    return DetectReport(out, len(paths), time.perf_counter() - t0, t_det)
+
+        # disable=None: no bar when stderr is not a terminal
+        for _ in tqdm(pool.map(detect, paths), total=len(paths), desc="detecting", unit="img",
+                      disable=None if progress else True):
+            pass
+    return DetectReport(out, len(paths), time.perf_counter() - t0, pool.workers)
 
 
 @dataclass
@@ -552,15 +565,22 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
             raise InputError("is a folder; the report is a JSON file", path=out_path)
         if out_path.exists() and not overwrite:
             raise InputError("exists (use --overwrite to replace it)", path=out_path)
-    det = (detect_options or DetectOptions()).detector(model, threads)
+    pool = (detect_options or DetectOptions()).pool(model, threads)
+    det = pool.detector
     info = det.info
     stats = InstanceStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                           match_px=match_px, px_scale=info.output_scale)
-    for item in tqdm(items, desc="evaluating", unit="img", disable=None if progress else True):
+
+    def detect(d: HeatmapDetector, item: LabelledImage) -> tuple[tuple[int, ...], np.ndarray]:
         img = read_image(item.path)
-        pred = det.detect_small(img)
+        return img.shape, d.detect_small(img)
+
+    for item, (shape, pred) in zip(items, tqdm(pool.map(detect, items), total=len(items),
+                                               desc="evaluating", unit="img",
+                                               disable=None if progress else True),
+                                   strict=True):
         gh, gw = pred.shape[1:]
-        h0, w0 = img.shape[:2]
+        h0, w0 = shape[:2]
         # pixel centres: u in the photo is (u + 0.5) * gw / w0 - 0.5 on the heat-map grid
         uv = [(t.uv + 0.5) * np.array([gw / w0, gh / h0]) - 0.5 for t in item.turbines]
         vis = [t.visibility for t in item.turbines]
