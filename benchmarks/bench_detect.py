@@ -252,6 +252,17 @@ def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
     write_png(path, np.concatenate(rows, axis=0))
 
 
+def _nulls(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None."""
+    if isinstance(obj, dict):
+        return {k: _nulls(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_nulls(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--heldout", type=int, default=500)
@@ -355,7 +366,10 @@ def main() -> None:
            "fit": {"keyframes": args.keyframes, "detected_options": DETECTED_OPTIONS,
                    "rows": rows, **summaries["all"],
                    "unseen": summaries.get("unseen")}}
-    (RESULTS / "bench_detect.json").write_text(json.dumps(out, indent=2) + "\n")
+    # strict JSON: an undefined figure (NaN, such as a flight's tips in sight, which its
+    # photos do not record) is written as null
+    (RESULTS / "bench_detect.json").write_text(json.dumps(_nulls(out), indent=2,
+                                                          allow_nan=False) + "\n")
     print(f"wrote {RESULTS / 'bench_detect.json'}")
 
 

@@ -438,9 +438,9 @@ class DetectorPool:
     """``workers`` :class:`HeatmapDetector` s of one model, each on one onnxruntime
     thread, detecting that many photos at once: the way to run many photos.
 
-    On this 2-core machine, two single-threaded detectors working on two photos make 70
-    photos/s at 320 x 240 (zoom on; the README's "From photos"), one detector on two
-    threads 46-60: much of a photo's work (resizing, padding, the zoom's box and crop,
+    On this 2-core machine, two single-threaded detectors working on two photos make
+    68-70 photos/s at 320 x 240 (zoom on; the README's "Measured figures"), one detector
+    on two threads 46-62: much of a photo's work (resizing, padding, the zoom's box and crop,
     the maps' mirror average) runs on one thread while the net's second thread waits.
     A detector's maps do not depend on how many threads it has, so the pool's maps are
     bit for bit those of one :class:`HeatmapDetector` of the same options.
