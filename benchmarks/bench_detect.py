@@ -225,8 +225,7 @@ def speed(pool: DetectorPool, flight: Path, count: int = 100, rounds: int = 5,
     t0 = time.perf_counter()
     list(pool.map(lambda det, p: det.detect(read_image(p)), photos))
     t_all = time.perf_counter() - t0
-    one = HeatmapDetector(pool.detector.path, flip=pool.detector.flip,
-                          tip_shift=pool.detector.tip_shift, zoom=pool.detector.zoom)
+    one = pool.options.detector(pool.detector.path)
     for im in imgs[:5]:
         one.detect(im)
     one_median, one_best = _rates(lambda: [one.detect(im) for im in imgs], len(imgs), rounds)

@@ -244,8 +244,9 @@ def test_pool_gives_one_detectors_maps_in_order(detector: HeatmapDetector,
         threading.current_thread().name]
     np.testing.assert_array_equal(next(one.map(lambda d, im: d.detect(im), images[:1])),
                                   HeatmapDetector(threads=1, zoom=False).detect(images[0]))
-    with pytest.raises(ValueError, match="at least 1"):
-        DetectorPool(workers=-1)
+    for bad in (0, -1):
+        with pytest.raises(ValueError, match="at least 1"):
+            DetectorPool(workers=bad)
 
 
 def test_pool_raises_the_first_error_in_order_and_starts_nothing_after_it() -> None:

@@ -457,11 +457,12 @@ class DetectorPool:
 
     def __init__(self, model: StrPath | None = None, workers: int | None = None,
                  options: DetectOptions | None = None) -> None:
-        n = int(workers or os.cpu_count() or 1)
+        n = (os.cpu_count() or 1) if workers is None else int(workers)
         if n < 1:
             raise ValueError(f"workers must be at least 1, got {workers}")
-        opts = options or DetectOptions()
-        self.detectors = [opts.detector(model, 1) for _ in range(n)]
+        #: The options the pool's detectors were made with.
+        self.options = options or DetectOptions()
+        self.detectors = [self.options.detector(model, 1) for _ in range(n)]
 
     @property
     def detector(self) -> HeatmapDetector:
