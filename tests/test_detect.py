@@ -247,6 +247,8 @@ def test_pool_gives_one_detectors_maps_in_order(detector: HeatmapDetector,
     for bad in (0, -1):
         with pytest.raises(ValueError, match="at least 1"):
             DetectorPool(workers=bad)
+        with pytest.raises(ValueError, match="at least 1"):
+            HeatmapDetector(threads=bad)
 
 
 def test_pool_raises_the_first_error_in_order_and_starts_nothing_after_it() -> None:

@@ -296,7 +296,9 @@ class HeatmapDetector:
         self.path = Path(model) if model is not None else default_model_path()
         if not self.path.is_file():
             raise InputError("model file not found", path=self.path)
-        n_threads = int(threads or os.cpu_count() or 1)
+        n_threads = (os.cpu_count() or 1) if threads is None else int(threads)
+        if n_threads < 1:
+            raise ValueError(f"threads must be at least 1, got {threads}")
         try:
             self.session = ort.InferenceSession(str(self.path),
                                                 _session_options(n_threads, spinning),
