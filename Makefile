@@ -12,7 +12,7 @@ MODEL_IMAGES ?= 24000
 MODEL_WIDTHS ?= 32,48,96,192
 MODEL_EPOCHS ?= 8
 
-.PHONY: demo test bench model lint typecheck check clean
+.PHONY: demo test bench bench-blender model lint typecheck check clean
 
 $(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fit.py
 	$(BIN)/python benchmarks/bench_detect.py
 	$(BIN)/python benchmarks/bench_track.py
+
+## bench-blender: the CNN on the same held-out views rendered by Blender's Cycles path tracer
+##                (another renderer: does the net see turbines or its renderer's artefacts?);
+##                needs Blender (Debian: apt-get install blender), ~30 min on 2 cores
+bench-blender: $(STAMP)
+	$(BIN)/python benchmarks/bench_blender.py
 
 ## model: train a heat-map CNN like the shipped one from scratch (320x240 photos, 160x120
 ##        heat-maps; several hours on 2 cores; see the README for how the shipped one was made)

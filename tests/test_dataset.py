@@ -17,6 +17,7 @@ from turbinefit.sim.dataset import (
     build_dataset,
     check_dataset_folder,
     render_sample,
+    sample_view,
 )
 from turbinefit.sim.render import render_keypoint_heatmaps
 
@@ -28,6 +29,35 @@ def test_samples_are_deterministic_and_independent_of_size() -> None:
     np.testing.assert_array_equal(a.target, b.target)
     c = render_sample(DatasetSpec(5, seed=4), 2)
     assert not np.array_equal(a.image, c.image)
+
+
+def test_sample_view_is_the_view_a_sample_shows() -> None:
+    """Another renderer drawing views with sample_view (as benchmarks/bench_blender.py
+    does) sees exactly the turbine and camera of the training sample of the same rng; and
+    the views of a seed are pinned: a change of what they are changes every dataset, and
+    needs a new DATA_VERSION."""
+    from turbinefit.turbine.model import model_points
+
+    spec = DatasetSpec(4, seed=21)
+    for i in range(4):
+        s = render_sample(spec, i)
+        view = sample_view(np.random.default_rng(np.random.SeedSequence([spec.seed, i])))
+        assert (view.camera.width, view.camera.height) == (spec.width, spec.height)
+        world_p, _ = model_points(view.turbine.to_vector(), view.geometry)
+        uv, front, _ = view.camera.project_unbounded(view.world_T_cam.inverse().apply(world_p))
+        visible = front & view.camera.in_image(uv)
+        np.testing.assert_array_equal(visible, s.visible)
+        np.testing.assert_allclose(uv[visible], s.points[visible], rtol=0, atol=1e-9)
+    view = sample_view(np.random.default_rng(np.random.SeedSequence([21, 1])))
+    np.testing.assert_allclose(view.turbine.to_vector(), [
+        0.0, 0.0, 93.84084840307217, 5.686611589386724, 4.613716743355981, 0.9035845027390934,
+        41.62666103259167], rtol=1e-9)
+    np.testing.assert_allclose(view.world_T_cam.translation,
+                               [-49.839778633233024, -28.86442895815431, 37.44597511325985],
+                               rtol=1e-9)
+    assert view.camera.fx == pytest.approx(124.36859651816059, rel=1e-9)
+    assert view.geometry.shaft_tilt == pytest.approx(0.047691559743318165, rel=1e-9)
+    assert DATA_VERSION == 3  # the version these views belong to
 
 
 def test_image_scales_show_the_same_scene() -> None:

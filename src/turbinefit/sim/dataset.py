@@ -141,18 +141,42 @@ def _flight_view(rng: np.random.Generator, turbine: TurbineParams,
     return path.world_T_cam[int(rng.integers(60))]
 
 
-def render_sample(spec: DatasetSpec, index: int) -> Sample:
-    """Sample ``index`` of the dataset ``spec`` (deterministic)."""
-    rng = np.random.default_rng(np.random.SeedSequence([spec.seed, index]))
+@dataclass(frozen=True)
+class View:
+    """What one sample shows, before its look is drawn: the inspected ``turbine`` (base at
+    the origin) with its ``geometry``, the ``camera`` (at the heat-map size) and the
+    camera's pose ``world_T_cam`` (world metres, z up; OpenCV camera frame)."""
+
+    turbine: TurbineParams
+    geometry: TurbineGeometry
+    camera: PinholeCamera
+    world_T_cam: SE3
+
+
+def sample_view(rng: np.random.Generator, width: int = MODEL_WIDTH,
+                height: int = MODEL_HEIGHT) -> View:
+    """A random :class:`View` as the training data draws them (turbine, shaft tilt and
+    blade cone, horizontal field of view 50-90 deg, 70 % varied views and 30 % keyframes of
+    planned inspection flights), for heat-maps of ``width`` x ``height`` px. Other
+    renderers (``benchmarks/bench_blender.py``) use it to show the same kinds of views."""
     turbine = sample_turbine(rng, base_radius=0.0)
     geometry = _random_geometry(rng)
-    small = _camera(rng, spec.width, spec.height)
-    render = max(RENDER_SCALE, spec.image_scale)
-    big = small.resized(spec.width * render, spec.height * render)
+    small = _camera(rng, width, height)
+    big = small.resized(width * RENDER_SCALE, height * RENDER_SCALE)
     if rng.uniform() < FLIGHT_FRACTION:
         pose = _flight_view(rng, turbine, geometry)
     else:
         pose = sample_training_view(rng, turbine, big, geometry)
+    return View(turbine, geometry, small, pose)
+
+
+def render_sample(spec: DatasetSpec, index: int) -> Sample:
+    """Sample ``index`` of the dataset ``spec`` (deterministic)."""
+    rng = np.random.default_rng(np.random.SeedSequence([spec.seed, index]))
+    view = sample_view(rng, spec.width, spec.height)
+    turbine, geometry, small, pose = view.turbine, view.geometry, view.camera, view.world_T_cam
+    render = max(RENDER_SCALE, spec.image_scale)
+    big = small.resized(spec.width * render, spec.height * render)
     scene = sample_scene(rng, turbine)
     photo, depth = render_image_and_depth(big, pose, turbine.to_vector(), scene, rng, geometry)
     image = resize_image(photo, spec.width * spec.image_scale, spec.height * spec.image_scale)

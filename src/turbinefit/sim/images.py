@@ -52,8 +52,10 @@ the ``rng`` passed to :func:`render_image`. The same inputs and rng state give a
 bit-identical image.
 
 Why hand-written: no Python library renders procedural turbines and landscapes on a CPU
-without OpenGL (pyrender, vispy, Open3D and Blender need a GL context or a GPU; ray
-tracers such as Mitsuba are heavy and slow for 100k training images). A 320x240 image takes
+without OpenGL (pyrender, vispy and Open3D need a GL context); path tracers are slow for
+100k training images and no pip dependency (Blender's Cycles runs headless on the CPU
+here but takes ~9 s for a 640x480 view: ``benchmarks/bench_blender.py`` uses it as an
+independent renderer to test the net on; Mitsuba is heavier still). A 320x240 image takes
 ~18 ms (median, one core), a 160x120 one ~9 ms; :func:`sample_scene` ~20 ms.
 """
 
