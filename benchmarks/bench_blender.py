@@ -7,23 +7,35 @@ It renders the same views twice (``--n`` held-out views of a seed never trained 
 by :func:`turbinefit.sim.dataset.sample_view` exactly as the training data draws them,
 each with its :func:`~turbinefit.sim.images.sample_scene` scene): once with turbinefit's
 own renderer, as a training sample is made, and once with Blender (Cycles on the CPU,
-``benchmarks/blender/render_scenes.py``): the same turbine built as meshes round the same
-skeleton (tapered tower, box nacelle, ellipsoid spinner, tapered twisted blades with the
-same chord profile and paint), the same neighbours, sun position, cloud cover, overcast
-and terrain kind, but path-traced light and shadows, a physical sky (Blender's Nishita
-model), procedural ground materials of Blender's own (Voronoi field patches, noise grain;
-calm sea), Filmic tone mapping and path-tracing noise in place of the numpy renderer's
-shading, textures, haze, hills, roads and camera effects. Both sets are scored against
-the same exact targets with the held-out metrics of ``bench_detect.py``
-(:class:`turbinefit.eval.detection.DetectionStats`, pixels of the 320 x 240 photos).
+``benchmarks/blender/render_scenes.py``). Blender gets the scene's content - the turbine
+built as meshes round the same skeleton (tapered tower with its painted base band, box
+nacelle, ellipsoid spinner, tapered twisted blades of the same chord profile and paint),
+the neighbours, gravel pads and roads, sun position, cloud cover, overcast and terrain
+kind with its colours - and none of turbinefit's rendering: path-traced light, shadows and
+reflections, a physical sky (Blender's Nishita model) under a procedural cloud deck,
+procedural ground materials of Blender's own (Voronoi field patches with noise grain, or a
+calm sea), and a camera model applied to the raw radiance (:func:`develop`: auto-exposure,
+a filmic tone curve, white balance, JPEG), rendered at twice the size and averaged down.
+Left out: hills, haze, hedges, crop rows, coastlines, doors, red tip bands, motion blur and
+defocus. Both sets are scored against the same exact targets with the held-out metrics of
+``bench_detect.py`` (:class:`turbinefit.eval.detection.DetectionStats`, pixels of the
+320 x 240 photos).
 
 Requires Blender (Debian: ``apt-get install blender``; 3.4 was used); it is not a
 dependency of turbinefit, and ``make bench`` does not run this script. Renders are cached
-in ``benchmarks/data/blender-n{N}-s{SEED}/`` (an interrupted run resumes).
+in ``benchmarks/data/blender-n{N}-s{SEED}-spp{SAMPLES}/`` (an interrupted run resumes;
+delete the folder after changing what a scene holds). 200 views take ~27 min here.
+
+With ``--flights SEED ...``, also whole benchmark flights of ``bench_detect.py`` (200
+keyframes, the flight's own scene): their photos rendered by Blender, the detection
+figures of the flight's photos of either renderer against its ideal heat-maps, and the
+fit from them (``turbinefit fit --from-images --points interp --robust cauchy``) beside
+the fit from the ideal heat-maps (~30 min a flight here).
 
 Usage::
 
-    python benchmarks/bench_blender.py [--n 200] [--samples 32] [--blender PATH] [--model M.onnx]
+    python benchmarks/bench_blender.py [--n 200] [--flights SEED ...] [--samples 24]
+                                       [--blender PATH] [--model M.onnx]
 
 Prints the figures and writes ``benchmarks/results/bench_blender.json`` and
 ``benchmarks/results/blender_examples.png`` (Blender renders, with the detected heat-maps
@@ -39,27 +51,37 @@ import os
 import shutil
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_detect import DATA, RESULTS, _nulls, print_heldout
+from bench_detect import (
+    DATA,
+    DETECTED_OPTIONS,
+    RESULTS,
+    _nulls,
+    fit,
+    flight_detection,
+    print_heldout,
+    simulate,
+)
+from common import write_json
 
 from turbinefit.detect import DetectorPool, overlay
 from turbinefit.eval.detection import DetectionStats
+from turbinefit.io.flight_folder import IMAGE_DIR, read_flight, write_flight
 from turbinefit.io.images import resize_image, write_png
-from turbinefit.sim.dataset import IMAGE_SCALE, RENDER_SCALE, TARGET_SIGMA_PX, View, sample_view
-from turbinefit.sim.images import (
-    Scene,
-    _blade_profile,
-    _Turbine,
-    points_in_sight,
-    render_image_and_depth,
-    sample_scene,
+from turbinefit.sim.dataset import (
+    IMAGE_SCALE,
+    DatasetSpec,
+    Sample,
+    View,
+    render_sample,
+    sample_view,
 )
-from turbinefit.sim.render import RenderConfig, render_heatmaps
-from turbinefit.turbine.model import TurbineGeometry, model_points
+from turbinefit.sim.images import Scene, _blade_profile, _Turbine, sample_scene
+from turbinefit.sim.scenario import SimConfig
+from turbinefit.turbine.model import TurbineGeometry
 
 HERE = Path(__file__).resolve().parent
 SCRIPT = HERE / "blender" / "render_scenes.py"
@@ -74,14 +96,6 @@ Mesh = dict[str, Any]
 def _linear(c: tuple[float, ...]) -> list[float]:
     """Display RGB (what turbinefit's renderer paints with) to Blender's linear RGB."""
     return [float(v) ** 2.2 for v in c]
-
-
-def _frame(e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing unit ``e`` to an orthonormal frame."""
-    a = np.array([0.0, 0.0, 1.0]) if abs(e[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    u = np.cross(e, a)
-    u /= np.linalg.norm(u)
-    return u, np.cross(e, u)
 
 
 def _rings(centres: np.ndarray, ax: np.ndarray, ay: np.ndarray, rx: np.ndarray,
@@ -117,6 +131,13 @@ def turbine_meshes(theta: np.ndarray, geometry: TurbineGeometry, scene: Scene,
     r = t.r0 + s * (t.r1 - t.r0)
     v, f = _rings(cent, np.tile(ex, (k, 1)), np.tile(ey, (k, 1)), r, r, 32, (False, True))
     meshes.append({"vertices": v, "faces": f, "material": material, "smooth": True})
+    band = min(scene.base_band[0], 0.9 * float(top[2] - t.base[2]))
+    if band > 0:  # a differently painted tower base, just outside the tower
+        s = np.array([0.0, band / float(top[2] - t.base[2])])
+        cent = t.base[None] + s[:, None] * (top - t.base)[None]
+        r = 1.01 * (t.r0 + s * (t.r1 - t.r0))
+        v, f = _rings(cent, np.tile(ex, (2, 1)), np.tile(ey, (2, 1)), r, r, 32, (False, False))
+        meshes.append({"vertices": v, "faces": f, "material": "band", "smooth": True})
     # nacelle: a box along the shaft
     c, (hx, hy, hz) = t.nac_centre, t.nac_half
     corners = [c + sx * hx * t.shaft + sy * hy * t.side + sz * hz * t.up
@@ -149,6 +170,23 @@ def turbine_meshes(theta: np.ndarray, geometry: TurbineGeometry, scene: Scene,
     return meshes
 
 
+def ground_meshes(scene: Scene) -> list[Mesh]:
+    """The scene's gravel pads round the turbine bases (discs) and its roads and tracks
+    (flat strips), a few centimetres above the ground plane."""
+    meshes: list[Mesh] = []
+    for x, y, radius in scene.pads:
+        phi = 2 * math.pi * np.arange(32) / 32
+        ring = np.stack([x + radius * np.cos(phi), y + radius * np.sin(phi), np.full(32, 0.03)], 1)
+        meshes.append({"vertices": ring.tolist(), "faces": [list(range(32))], "material": "pad"})
+    for x0, y0, x1, y1, w in scene.roads:
+        d = np.array([x1 - x0, y1 - y0])
+        n = np.array([-d[1], d[0]]) / max(float(np.linalg.norm(d)), 1e-9) * 0.5 * w
+        quad = [[x0 + n[0], y0 + n[1], 0.02], [x1 + n[0], y1 + n[1], 0.02],
+                [x1 - n[0], y1 - n[1], 0.02], [x0 - n[0], y0 - n[1], 0.02]]
+        meshes.append({"vertices": quad, "faces": [[0, 1, 2, 3]], "material": "road"})
+    return meshes
+
+
 def blender_scene(i: int, view: View, scene: Scene, rng: np.random.Generator,
                   width: int, height: int) -> dict[str, Any]:
     """The JSON description of view ``i`` for ``render_scenes.py``, at ``width`` x
@@ -157,7 +195,10 @@ def blender_scene(i: int, view: View, scene: Scene, rng: np.random.Generator,
     pose = view.world_T_cam
     meshes = [m for theta in (view.turbine.to_vector(), *scene.neighbours)
               for m in turbine_meshes(np.asarray(theta), view.geometry, scene, "paint")]
-    if scene.terrain == "offshore" or scene.sea == "all":
+    sea = scene.terrain == "offshore" or scene.sea == "all"
+    if not sea:
+        meshes += ground_meshes(scene)
+    if sea:
         ground = {"kind": "sea", "colour": _linear(scene.sea_colour),
                   "roughness": float(rng.uniform(0.05, 0.25)), "wave": float(rng.uniform(0.05, 0.3))}
     else:
@@ -184,7 +225,10 @@ def blender_scene(i: int, view: View, scene: Scene, rng: np.random.Generator,
                        "R": np.asarray(R).tolist(), "t": np.asarray(t).ravel().tolist()},
             "meshes": meshes,
             "materials": {"paint": {"colour": _linear(scene.paint),
-                                    "roughness": float(rng.uniform(0.25, 0.6))}},
+                                    "roughness": float(rng.uniform(0.25, 0.6))},
+                          "band": {"colour": _linear(scene.base_band[1:]), "roughness": 0.5},
+                          "pad": {"colour": _linear(scene.pad_colour), "roughness": 0.95},
+                          "road": {"colour": _linear(scene.road_colour), "roughness": 0.9}},
             "ground": ground, "sky": sky}
 
 
@@ -211,40 +255,20 @@ def develop(raw: np.ndarray, rng: np.random.Generator, width: int, height: int) 
     return np.asarray(Image.open(io.BytesIO(buf.getvalue())).convert("RGB"))
 
 
-@dataclass
-class Item:
-    """One view: the numpy renderer's photo, exact targets and points (heat-map px)."""
-
-    ours: np.ndarray
-    target: np.ndarray
-    points: np.ndarray
-    visible: np.ndarray
-    in_sight: np.ndarray
-
-
-def make_views(n: int, width: int, height: int) -> tuple[list[dict], list[Item]]:
-    scenes, items = [], []
+def make_views(n: int, width: int, height: int) -> tuple[list[dict], list[Sample]]:
+    """The ``n`` views: their Blender descriptions (``width`` x ``height`` px) and the
+    training samples of the same views (turbinefit's photo at the model's input size,
+    exact targets, points in heat-map px; :func:`turbinefit.sim.dataset.render_sample`)."""
+    spec = DatasetSpec(n, SEED, image_scale=IMAGE_SCALE)
+    scenes, samples = [], []
     for i in range(n):
-        rng = np.random.default_rng(np.random.SeedSequence([SEED, i]))
+        samples.append(render_sample(spec, i))
+        rng = np.random.default_rng(np.random.SeedSequence([SEED, i]))  # as render_sample
         view = sample_view(rng)
         scene = sample_scene(rng, view.turbine)
-        theta = view.turbine.to_vector()
-        big = view.camera.resized(view.camera.width * RENDER_SCALE, view.camera.height * RENDER_SCALE)
-        photo, depth = render_image_and_depth(big, view.world_T_cam, theta, scene, rng,
-                                              view.geometry)
-        ours = resize_image(photo, width, height)
-        small = view.camera
-        target = render_heatmaps(small, view.world_T_cam, theta, view.geometry,
-                                 RenderConfig(sigma_px=TARGET_SIGMA_PX))
-        world_p, _ = model_points(theta, view.geometry)
-        uv, ok, _ = small.project_unbounded(view.world_T_cam.inverse().apply(world_p))
-        visible = ok & small.in_image(uv)
-        in_sight = visible & points_in_sight(big, view.world_T_cam, world_p, depth)
-        items.append(Item(ours, target, np.where(np.isfinite(uv), uv, 0.0), visible, in_sight))
         brng = np.random.default_rng(np.random.SeedSequence([SEED, i, 1]))
-        scenes.append(blender_scene(i, view, scene, brng, width * OVERSAMPLE,
-                                    height * OVERSAMPLE))
-    return scenes, items
+        scenes.append(blender_scene(i, view, scene, brng, width, height))
+    return scenes, samples
 
 
 def render_blender(blender: str, scenes: list[dict], folder: Path, width: int, height: int,
@@ -268,7 +292,7 @@ def render_blender(blender: str, scenes: list[dict], folder: Path, width: int, h
         sys.exit("blender failed:\n" + "".join(log[-30:]))
 
 
-def score(pool: DetectorPool, photos: list[np.ndarray], items: list[Item]) -> dict[str, float]:
+def score(pool: DetectorPool, photos: list[np.ndarray], items: list[Sample]) -> dict[str, float]:
     info = pool.detector.info
     stats = DetectionStats(threshold=info.threshold, tip_threshold=info.tip_threshold,
                            px_scale=info.output_scale)
@@ -278,50 +302,112 @@ def score(pool: DetectorPool, photos: list[np.ndarray], items: list[Item]) -> di
     return stats.summary()
 
 
+def develop_all(folder: Path, scenes: list[dict], seed: int, width: int,
+                height: int) -> list[np.ndarray]:
+    """The photos (``width`` x ``height``) of the raw renders of ``scenes`` in ``folder``;
+    scene k's camera is seeded by (``seed``, k)."""
+    photos = []
+    for k, s in enumerate(scenes):
+        raw = np.fromfile(folder / "blender" / s["file"], dtype=np.float32)
+        raw = raw.reshape(height * OVERSAMPLE, width * OVERSAMPLE, 4)
+        rng = np.random.default_rng(np.random.SeedSequence([seed, k, 2]))
+        photos.append(develop(raw, rng, width, height))
+    return photos
+
+
+def views_benchmark(pool: DetectorPool, n: int, blender: str, samples: int) -> dict[str, Any]:
+    """Held-out metrics of both renderers' photos of ``n`` views, and the example sheet."""
+    info = pool.detector.info
+    width, height = info.input_width, info.input_height
+    folder = DATA / f"blender-n{n}-s{SEED}-spp{samples}"
+    folder.mkdir(parents=True, exist_ok=True)
+    print(f"{n} views (seed {SEED}): rendering with turbinefit's renderer ...")
+    scenes, items = make_views(n, width * OVERSAMPLE, height * OVERSAMPLE)
+    print(f"rendering the same views with {blender} (Cycles, {samples} samples) ...")
+    render_blender(blender, scenes, folder, width * OVERSAMPLE, height * OVERSAMPLE, samples)
+    photos = {"turbinefit": [it.image for it in items],
+              "blender": develop_all(folder, scenes, SEED, width, height)}
+    results = {}
+    for name, ims in photos.items():
+        results[name] = score(pool, ims, items)
+        print(f"{name} renders ({n}), in pixels of the {width}x{height} photos:")
+        print_heldout(results[name], f"{width}x{height} px")
+    det = pool.detector
+    picks = np.linspace(0, n - 1, 8).astype(int)
+    rows = [np.concatenate([overlay(p[k], det.detect(p[k])) for k in picks[r * 4:(r + 1) * 4]], 1)
+            for p in (photos["blender"], photos["turbinefit"]) for r in range(2)]
+    write_png(RESULTS / "blender_examples.png", np.concatenate(rows, 0))
+    return {"n": n, "seed": SEED, **results}
+
+
+def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
+                     keyframes: int = 200) -> dict[str, Any]:
+    """The benchmark flight ``seed`` (``bench_detect.py``'s, ``keyframes`` long) with its photos
+    rendered by Blender from the same scene; detection on its photos and the fit from
+    them (``--points interp --robust cauchy``), beside the same for turbinefit's photos of
+    the flight and the ideal heat-maps."""
+    src = simulate(seed, keyframes)
+    fl = read_flight(src)
+    assert fl.gt_turbine is not None and fl.gt_world_T_cam is not None
+    geometry = SimConfig().geometry
+    # the flight's scene, as render_flight_images samples it
+    scene_ss, _ = np.random.SeedSequence(seed).spawn(2)
+    scene = sample_scene(np.random.default_rng(scene_ss), fl.gt_turbine)
+    w, h = fl.camera.width, fl.camera.height
+    scenes = [blender_scene(k, View(fl.gt_turbine, geometry, fl.camera, fl.gt_world_T_cam[k]),
+                            scene, np.random.default_rng(np.random.SeedSequence([seed, k, 1])),
+                            w * OVERSAMPLE, h * OVERSAMPLE)
+              for k in range(len(fl.timestamps))]
+    folder = DATA / f"blender-flight-n{keyframes}-s{seed}-spp{samples}"
+    folder.mkdir(parents=True, exist_ok=True)
+    print(f"flight {seed}: rendering its {len(scenes)} keyframes with {blender} ...")
+    render_blender(blender, scenes, folder, w * OVERSAMPLE, h * OVERSAMPLE, samples)
+    copy = folder / "flight"
+    if not (copy / IMAGE_DIR).is_dir():
+        write_flight(fl, copy, overwrite=True,
+                     images=iter(develop_all(folder, scenes, seed, w, h)))
+    out: dict[str, Any] = {"seed": seed}
+    for name, path in (("turbinefit", src), ("blender", copy)):
+        out[name] = {"detection": flight_detection(pool, path),
+                     "fit": fit(path, ["--from-images", *DETECTED_OPTIONS])}
+    out["ideal_fit"] = fit(src, DETECTED_OPTIONS)
+    print(f"flight {seed}, {' '.join(DETECTED_OPTIONS)}: ideal heat-maps "
+          f"{out['ideal_fit']['position_m']:.3f} m; from turbinefit's photos "
+          f"{out['turbinefit']['fit']['position_m']:.3f} m; from Blender's "
+          f"{out['blender']['fit']['position_m']:.3f} m (initial "
+          f"{out['ideal_fit']['before_position_m']:.3f} m)")
+    for name in ("turbinefit", "blender"):
+        d = out[name]["detection"]
+        print(f"  {name:10s} photos: tips {d['tips_recall']:.1%} / {d['tips_precision']:.1%}, "
+              f"hub / top / base median {d['hub_median_px']:.2f} / {d['tower_top_median_px']:.2f}"
+              f" / {d['base_median_px']:.2f} px, IoU tower / nacelle / blade "
+              f"{d['iou_tower']:.2f} / {d['iou_nacelle']:.2f} / {d['iou_blade']:.2f}")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--samples", type=int, default=32, help="Cycles samples per pixel")
+    ap.add_argument("--n", type=int, default=200, help="held-out views (0: none)")
+    ap.add_argument("--flights", type=int, nargs="*", default=[],
+                    help="seeds of benchmark flights to render with Blender and fit")
+    ap.add_argument("--samples", type=int, default=24, help="Cycles samples per pixel")
     ap.add_argument("--blender", default=shutil.which("blender"))
     ap.add_argument("--model", type=Path, default=None)
     args = ap.parse_args()
     if not args.blender:
         sys.exit("bench_blender: Blender not found (Debian: apt-get install blender; or --blender PATH)")
     pool = DetectorPool(args.model)
-    info = pool.detector.info
-    width, height = info.input_width, info.input_height
-    assert (width, height) == (160 * IMAGE_SCALE, 120 * IMAGE_SCALE)
-    folder = DATA / f"blender-n{args.n}-s{SEED}"
-    folder.mkdir(parents=True, exist_ok=True)
-    print(f"{args.n} views (seed {SEED}): rendering with turbinefit's renderer ...")
-    scenes, items = make_views(args.n, width, height)
-    print(f"rendering the same views with {args.blender} (Cycles, {args.samples} samples) ...")
-    render_blender(args.blender, scenes, folder, width * OVERSAMPLE, height * OVERSAMPLE,
-                   args.samples)
-    blender = []
-    for i, s in enumerate(scenes):
-        raw = np.fromfile(folder / "blender" / s["file"], dtype=np.float32)
-        raw = raw.reshape(height * OVERSAMPLE, width * OVERSAMPLE, 4)
-        blender.append(develop(raw, np.random.default_rng(np.random.SeedSequence([SEED, i, 2])),
-                               width, height))
-    ours = [it.ours for it in items]
-    results = {}
-    for name, photos in (("turbinefit", ours), ("blender", blender)):
-        m = score(pool, photos, items)
-        results[name] = m
-        print(f"{name} renders ({args.n}), in pixels of the {width}x{height} photos:")
-        print_heldout(m, f"{width}x{height} px")
-    det = pool.detector
-    picks = np.linspace(0, args.n - 1, 8).astype(int)
-    rows = [np.concatenate([overlay(p[k], det.detect(p[k])) for k in picks[r * 4:(r + 1) * 4]], 1)
-            for p in (blender, ours) for r in range(2)]
-    write_png(RESULTS / "blender_examples.png", np.concatenate(rows, 0))
-    out = {"model": str(det.path), "n": args.n, "seed": SEED, "samples": args.samples,
-           "px": "input", "threshold": info.threshold, "tip_threshold": info.tip_threshold,
-           "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom, **results}
-    (RESULTS / "bench_blender.json").write_text(json.dumps(_nulls(out), indent=2, allow_nan=False)
-                                                + "\n")
-    print(f"wrote {RESULTS / 'bench_blender.json'} and {RESULTS / 'blender_examples.png'}")
+    det, info = pool.detector, pool.detector.info
+    assert (info.input_width, info.input_height) == (160 * IMAGE_SCALE, 120 * IMAGE_SCALE)
+    out: dict[str, Any] = {
+        "model": str(det.path), "samples": args.samples, "px": "input",
+        "threshold": info.threshold, "tip_threshold": info.tip_threshold,
+        "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
+        "views": views_benchmark(pool, args.n, args.blender, args.samples) if args.n else None,
+        "flights": [flight_benchmark(pool, s, args.blender, args.samples) for s in args.flights]}
+    write_json(RESULTS / "bench_blender.json", _nulls(out))
+    print(f"wrote {RESULTS / 'bench_blender.json'}"
+          + (f" and {RESULTS / 'blender_examples.png'}" if args.n else ""))
 
 
 if __name__ == "__main__":

@@ -254,7 +254,7 @@ def render(scene: dict, out_dir: str, width: int, height: int) -> None:
     clear()
     mats = {name: paint(name, spec) for name, spec in scene["materials"].items()}
     mats["ground"] = ground_material(scene["ground"])
-    size = 20000.0
+    size = 4.0e5  # far enough that its edge stays below the horizon
     mesh_object("ground", {"vertices": [[-size, -size, 0], [size, -size, 0], [size, size, 0],
                                         [-size, size, 0]], "faces": [[0, 1, 2, 3]]},
                 mats["ground"])
