@@ -45,6 +45,7 @@ overlaid, above the same views by turbinefit's renderer).
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import math
 import os
@@ -66,6 +67,7 @@ from bench_detect import (
     simulate,
 )
 from common import write_json
+from PIL import Image
 
 from turbinefit.detect import DetectorPool, overlay
 from turbinefit.eval.detection import DetectionStats
@@ -239,10 +241,6 @@ def develop(raw: np.ndarray, rng: np.random.Generator, width: int, height: int) 
     (Narkowicz's ACES fit), sRGB encoding, the resize the detector itself does (so a
     render at twice the size is averaged down, as a camera's larger sensor would be), and
     JPEG at quality 80-95."""
-    import io
-
-    from PIL import Image
-
     lin = np.nan_to_num(raw[::-1, :, :3].astype(np.float64), nan=0.0, posinf=0.0)
     lum = lin @ np.array([0.2126, 0.7152, 0.0722])
     key = math.exp(float(np.mean(np.log(np.maximum(lum, 1e-5)))))
