@@ -10,8 +10,9 @@ own renderer, as a training sample is made, and once with Blender (Cycles on the
 ``benchmarks/blender/render_scenes.py``). Blender gets the scene's content - the turbine
 built as meshes round the same skeleton (tapered tower with its painted base band, box
 nacelle, ellipsoid spinner, tapered twisted blades of the same chord profile and paint),
-the neighbours, gravel pads and roads, sun position, cloud cover, overcast and terrain
-kind with its colours - and none of turbinefit's rendering: path-traced light, shadows and
+the neighbours, gravel pads and roads, sun elevation, cloud cover, overcast and terrain
+kind with its colours (the sun's azimuth is the scene's mirrored, 180 deg minus it: see
+:func:`blender_scene`) - and none of turbinefit's rendering: path-traced light, shadows and
 reflections, a physical sky (Blender's Nishita model) under a procedural cloud deck,
 procedural ground materials of Blender's own (Voronoi field patches with noise grain, or a
 calm sea), and a camera model applied to the raw radiance (:func:`develop`: auto-exposure,
@@ -197,13 +198,11 @@ def blender_scene(i: int, view: View, scene: Scene, rng: np.random.Generator,
     pose = view.world_T_cam
     meshes = [m for theta in (view.turbine.to_vector(), *scene.neighbours)
               for m in turbine_meshes(np.asarray(theta), view.geometry, scene, "paint")]
-    sea = scene.terrain == "offshore" or scene.sea == "all"
-    if not sea:
-        meshes += ground_meshes(scene)
-    if sea:
+    if scene.terrain == "offshore" or scene.sea == "all":
         ground = {"kind": "sea", "colour": _linear(scene.sea_colour),
                   "roughness": float(rng.uniform(0.05, 0.25)), "wave": float(rng.uniform(0.05, 0.3))}
     else:
+        meshes += ground_meshes(scene)
         cell = float(np.mean(scene.field_size)) if scene.terrain == "fields" else float(
             rng.uniform(40.0, 200.0))
         ground = {"kind": "land", "colours": [_linear(c) for c in scene.ground_colours[:3]],
@@ -212,6 +211,11 @@ def blender_scene(i: int, view: View, scene: Scene, rng: np.random.Generator,
                   "grain_strength": float(rng.uniform(0.3, 0.8)),
                   "roughness": float(rng.uniform(0.6, 0.95))}
     sky = {"sun_elevation_deg": math.degrees(scene.sun_elevation),
+           # Blender's sun rotation r puts the sun at azimuth 90 deg - r (counter-clockwise
+           # from world x, measured on a pole's shadow), so this gives the sun azimuth
+           # 180 deg minus the scene's: the same uniform distribution, mirrored view by view
+           # (a slip found after the published figures were rendered; kept so that they
+           # reproduce; the scene's own azimuth would be 90 - degrees(scene.sun_azimuth))
            "sun_azimuth_deg": math.degrees(scene.sun_azimuth) - 90.0,
            "air": float(rng.uniform(0.6, 2.0)), "dust": float(rng.uniform(0.0, 4.0)),
            "ozone": float(rng.uniform(0.5, 2.0)),
