@@ -82,7 +82,7 @@ from turbinefit.sim.dataset import (
     render_sample,
     sample_view,
 )
-from turbinefit.sim.images import Scene, _blade_profile, _Turbine, sample_scene
+from turbinefit.sim.images import Scene, _blade_profile, _Turbine, flight_scene, sample_scene
 from turbinefit.sim.scenario import SimConfig
 from turbinefit.turbine.model import TurbineGeometry
 
@@ -352,9 +352,7 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
     fl = read_flight(src)
     assert fl.gt_turbine is not None and fl.gt_world_T_cam is not None
     geometry = SimConfig().geometry
-    # the flight's scene, as render_flight_images samples it
-    scene_ss, _ = np.random.SeedSequence(seed).spawn(2)
-    scene = sample_scene(np.random.default_rng(scene_ss), fl.gt_turbine)
+    scene = flight_scene(fl.gt_turbine.to_vector(), seed)
     w, h = fl.camera.width, fl.camera.height
     scenes = [blender_scene(k, View(fl.gt_turbine, geometry, fl.camera, fl.gt_world_T_cam[k]),
                             scene, np.random.default_rng(np.random.SeedSequence([seed, k, 1])),

@@ -1765,6 +1765,15 @@ def points_in_sight(camera: PinholeCamera, world_T_cam: SE3, world_p: ArrayLike,
     return seen
 
 
+def flight_scene(turbine: ArrayLike, seed: int) -> Scene:
+    """The :class:`Scene` of the flight simulated with ``seed`` round ``turbine`` (theta):
+    the one :func:`render_flight_images` draws every keyframe in (other renderers use it
+    to show the same scene)."""
+    scene_ss, _ = np.random.SeedSequence(seed).spawn(2)
+    theta = np.asarray(turbine, dtype=np.float64).ravel()
+    return sample_scene(np.random.default_rng(scene_ss), TurbineParams.from_vector(theta))
+
+
 def render_flight_images(
     camera: PinholeCamera,
     world_T_cam: SE3,
@@ -1781,9 +1790,9 @@ def render_flight_images(
     """
     poses = SE3(world_T_cam.wxyz_xyz.reshape(-1, 7))
     n = poses.batch_shape[0]
-    scene_ss, frames_ss = np.random.SeedSequence(seed).spawn(2)
     theta = np.asarray(turbine, dtype=np.float64).ravel()
-    scene = sample_scene(np.random.default_rng(scene_ss), TurbineParams.from_vector(theta))
+    scene = flight_scene(theta, seed)
+    _, frames_ss = np.random.SeedSequence(seed).spawn(2)
     rngs = [np.random.default_rng(s) for s in frames_ss.spawn(n)]
     for k in tqdm(range(n), desc="rendering images", unit="img", disable=not progress):
         yield render_image(camera, poses[k], theta, scene, rngs[k], geometry)
