@@ -30,7 +30,7 @@ import yaml
 import turbinefit
 from turbinefit.cli import build_parser, main
 from turbinefit.io import read_tum, read_turbine_yaml
-from turbinefit.pipeline import load_fit_config
+from turbinefit.io.fit_config import read_fit_config
 from turbinefit.solver.config import PRESETS, FitConfig
 
 SIM_ARGS = ["--keyframes", "12", "--seed", "3", "--width", "160", "--height", "120"]
@@ -311,7 +311,7 @@ def test_fit_joint_with_plots(good_flight: Path, tmp_path: Path,
     assert np.isfinite(p_out).all() and not np.allclose(p_out, p_in, atol=1e-6)
 
     # config.yaml is the run's configuration (defaults here) and loads back
-    cfg = load_fit_config(out_dir / "config.yaml")
+    cfg = read_fit_config(out_dir / "config.yaml")
     assert cfg == FitConfig()
     assert yaml.safe_load((out_dir / "config.yaml").read_text())["turbinefit_version"] == \
         turbinefit.__version__
@@ -374,7 +374,7 @@ def test_fit_modes_and_unary_costs(variant: str, good_flight: Path, tmp_path: Pa
     assert set(entries(out_dir)) == FIT_OUTPUTS
 
     expected = dict(zip(args[::2], args[1::2], strict=True))
-    cfg = load_fit_config(out_dir / "config.yaml")
+    cfg = read_fit_config(out_dir / "config.yaml")
     for opt, value in expected.items():
         assert getattr(cfg, opt.lstrip("-")) == value
     assert cfg.max_iterations == 5
@@ -406,7 +406,7 @@ def test_fit_config_file_round_trip(good_flight: Path, tmp_path: Path,
                      "--points", "interp", "--lambda-pair", "2.5", "--robust", "huber",
                      "--pair-sigma-r", "0.2", "--max-iterations", "5")
     assert rc == 0, err
-    cfg1 = load_fit_config(first / "config.yaml")
+    cfg1 = read_fit_config(first / "config.yaml")
     assert cfg1 == dataclasses.replace(FitConfig(), points="interp", lambda_pair=2.5, robust="huber",
                                        pair_sigma_r_deg=0.2, max_iterations=5)
     # a previous run's config.yaml as --config; command-line options override it
@@ -414,7 +414,7 @@ def test_fit_config_file_round_trip(good_flight: Path, tmp_path: Path,
     rc, _, err = run(capsys, "fit", str(good_flight), "--out", str(second), "--no-plots", "--quiet",
                      "--config", str(first / "config.yaml"), "--max-iterations", "4")
     assert rc == 0, err
-    assert load_fit_config(second / "config.yaml") == dataclasses.replace(cfg1, max_iterations=4)
+    assert read_fit_config(second / "config.yaml") == dataclasses.replace(cfg1, max_iterations=4)
 
 
 def test_fit_preset(good_flight: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -422,7 +422,7 @@ def test_fit_preset(good_flight: Path, tmp_path: Path, capsys: pytest.CaptureFix
     rc, _, err = run(capsys, "fit", str(good_flight), "--out", str(out_dir), "--no-plots", "--quiet",
                      "--preset", "all-corr", "--max-iterations", "3")
     assert rc == 0, err
-    assert load_fit_config(out_dir / "config.yaml") == dataclasses.replace(PRESETS["all-corr"],
+    assert read_fit_config(out_dir / "config.yaml") == dataclasses.replace(PRESETS["all-corr"],
                                                                          max_iterations=3)
 
 
@@ -460,7 +460,7 @@ def test_fit_existing_output_needs_overwrite(good_flight: Path, tmp_path: Path,
 
     rc, _, err = run(capsys, *common, "--max-iterations", "3", "--overwrite")
     assert rc == 0, err
-    assert load_fit_config(out_dir / "config.yaml").max_iterations == 3
+    assert read_fit_config(out_dir / "config.yaml").max_iterations == 3
     assert set(entries(out_dir)) == FIT_OUTPUTS  # replaced, not merged: the old plot is gone
     assert entries(tmp_path) == ["fit"]
 
@@ -535,7 +535,6 @@ def test_help(command: str, must_mention: list[str], capsys: pytest.CaptureFixtu
 @pytest.mark.parametrize(("argv", "pattern"), [
     (["fit", "somewhere"], r"--out"),
     (["fit", "somewhere", "--out", "x", "--mode", "bogus"], r"invalid choice: 'bogus'"),
-    (["fit", "somewhere", "--out", "x", "--max-iterations", "0"], r"at least 1"),
     (["frobnicate"], r"invalid choice"),
     ([], r"COMMAND"),
     (["simulate", "x", "--seed", "-1"], r"--seed: must be a non-negative whole number"),
@@ -690,12 +689,12 @@ def test_fit_out_is_an_existing_file(good_flight: Path, tmp_path: Path,
 def test_fit_out_under_an_existing_file(good_flight: Path, tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str],
                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    import turbinefit.pipeline
+    import turbinefit.jobs.fit
 
     def fail(*args: object, **kwargs: object) -> None:
         raise AssertionError("read the flight although --out is unusable")
 
-    monkeypatch.setattr(turbinefit.pipeline, "read_flight", fail)  # refused before any work
+    monkeypatch.setattr(turbinefit.jobs.fit, "read_flight_folder", fail)  # refused before any work
     dest = tmp_path / "afile"
     dest.write_text("x")
     rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(dest / "sub" / "fit"),
@@ -817,13 +816,13 @@ def test_fit_overwrite_refuses_a_folder_that_is_not_a_fit_output(
 def test_fit_write_failure_leaves_nothing(good_flight: Path, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str],
                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    import turbinefit.pipeline
+    import turbinefit.jobs.fit
 
     def full_disk(out: Path, *args: object) -> None:
         (out / "scene.png").write_bytes(b"half a plot")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(turbinefit.pipeline, "write_plots", full_disk)
+    monkeypatch.setattr(turbinefit.jobs.fit, "write_plots", full_disk)
     out_dir = tmp_path / "fit"
     rc, out, err = run(capsys, "fit", str(good_flight), "--out", str(out_dir), "--quiet",
                        "--max-iterations", "1")
@@ -903,7 +902,7 @@ def test_load_fit_config_accepts_numbers_yaml_reads_as_text(tmp_path: Path) -> N
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text("gradient_tolerance: 1e-12\nlambda_pair: 2\ngeometry: {shaft_tilt: 0.087, "
                    "hub_offset: 2}\n")
-    loaded = load_fit_config(cfg)
+    loaded = read_fit_config(cfg)
     assert loaded.gradient_tolerance == 1e-12
     assert loaded.lambda_pair == 2.0
     assert (loaded.geometry.shaft_tilt, loaded.geometry.hub_offset) == (0.087, 2.0)
@@ -911,13 +910,14 @@ def test_load_fit_config_accepts_numbers_yaml_reads_as_text(tmp_path: Path) -> N
     # and what fit writes reads back
     again = tmp_path / "again.yaml"
     again.write_text(yaml.safe_dump(loaded.to_dict(), sort_keys=False))
-    assert load_fit_config(again) == loaded
+    assert read_fit_config(again) == loaded
 
 
 @pytest.mark.parametrize(("args", "patterns"), [
     (["--preset", "nope"], [r"--preset", r"'nope'", r"paper-best"]),
     (["--lambda-points", "nan"], [r"lambda_points", r"non-negative"]),
     (["--pixel-sigma", "-1"], [r"pixel_sigma", r"positive"]),
+    (["--max-iterations", "0"], [r"max_iterations", r">= 1"]),
     (["--points", "none", "--lines", "none"], [r"both be none"]),
 ])
 def test_fit_bad_options(args: list[str], patterns: list[str], good_flight: Path, tmp_path: Path,

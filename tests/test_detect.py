@@ -497,13 +497,15 @@ def test_track_from_photos_detects_inside_each_update(tmp_path: Path,
 
 
 def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
-    from turbinefit.io.flight_folder import read_flight
-    from turbinefit.pipeline import FIT_DETECT_WIDTH, image_heatmap_source
+    from turbinefit.io.flight_folder import read_flight, read_flight_folder
+    from turbinefit.jobs.sources import FIT_DETECT_WIDTH, PhotoHeatmaps
 
     flight = tmp_path / "f"
     assert main(["simulate", str(flight), "--keyframes", "3", "--seed", "1", "--width", "640",
                  "--height", "480", "--images", "--quiet"]) == 0
-    f = read_flight(flight, heatmaps=image_heatmap_source(flight, threads=1))
+    folder = read_flight_folder(flight)
+    source = PhotoHeatmaps(folder, threads=1)
+    f = folder.flight(source.stack(), source.camera)
     assert (f.camera.width, f.camera.height) == (FIT_DETECT_WIDTH, 240)
     assert (f.heatmaps.height, f.heatmaps.width) == (240, FIT_DETECT_WIDTH)
     full = read_flight(flight)

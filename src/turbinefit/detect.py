@@ -237,8 +237,8 @@ def model_input_size(width: int, height: int, info: ModelInfo) -> tuple[int, int
 
 @dataclass(frozen=True)
 class DetectOptions:
-    """How a :class:`HeatmapDetector` treats its model's maps, as one value the pipeline
-    functions and the CLI pass along; each None = as the model's metadata says.
+    """How a :class:`HeatmapDetector` treats its model's maps, as one value the jobs
+    and the CLI pass along; each None = as the model's metadata says.
 
     Attributes:
         flip: average the maps of the photo and of its mirror image

@@ -25,9 +25,9 @@ Layout (names exact)::
   Values are not checked when reading (that would read the data).
 * Images: ``images/<timestamp formatted %.6f>.png`` (or ``.jpg`` / ``.jpeg``), the
   keyframe's photo at the size of ``camera.yaml``. A flight with ``images/`` but no
-  ``heatmaps/`` is read with heat-maps detected from the photos (``turbinefit fit`` does
-  that: :func:`keyframe_images` finds the files, :func:`read_flight` takes the detected
-  stack as ``heatmaps``).
+  ``heatmaps/`` is read with heat-maps detected from the photos: :func:`read_flight_folder`
+  reads the rest, :func:`keyframe_images` finds the photos, and
+  :mod:`turbinefit.jobs.sources` detects them.
 
 Reading with ``mmap=True`` (default) maps every heat-map file read-only; only the ``.npy``
 headers are read (one small read per file, identical headers parsed once), so opening a
@@ -58,6 +58,7 @@ import math
 import os
 import stat
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -95,11 +96,6 @@ _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_F
                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
 #: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
 TIMESTAMP_TOLERANCE = 1e-6
-
-#: Makes a flight's heat-maps from its camera and keyframe timestamps (see read_flight);
-#: returns them with the camera of their pixel grid (e.g. the photo's camera resized).
-HeatmapSource = Callable[[PinholeCamera, NDArray[np.float64]],
-                         tuple[PinholeCamera, HeatmapStack]]
 
 _NPY_MAGIC = b"\x93NUMPY"
 _HEATMAP_DTYPE = np.dtype("<f4")
@@ -338,18 +334,64 @@ def has_heatmaps(folder: StrPath) -> bool:
     return _kind(Path(folder) / HEATMAP_DIR) is not None
 
 
-def read_flight(folder: StrPath, mmap: bool = True,
-                heatmaps: HeatmapStack | HeatmapSource | None = None) -> Flight:
-    """Read a flight folder (layout in the module docstring).
+@dataclass(frozen=True)
+class FlightFolder:
+    """What a flight folder says apart from its heat-maps (see :func:`read_flight_folder`).
 
-    Args:
-        folder: the flight folder.
-        mmap: memory-map the heat-maps (default; only headers are read) or load them into
-            one (N, 7, H, W) float32 array.
-        heatmaps: None = read ``heatmaps/``; else the heat-maps to use instead (one per
-            keyframe, at the camera's size), or a function ``(camera, timestamps) ->
-            (camera, HeatmapStack)`` called once the rest is read, e.g. detection from
-            ``images/`` at a working resolution; the flight gets the camera it returns.
+    Attributes:
+        root: the folder.
+        camera: intrinsics of ``camera.yaml`` (the photos' pixel grid).
+        keyframes: ``keyframes.txt`` (timestamps, initial ``world_T_cam``, line numbers).
+        turbine: the initial turbine.
+        odometry, gt_world_T_cam, gt_turbine: the optional files, or None.
+    """
+
+    root: Path
+    camera: PinholeCamera
+    keyframes: TumTrajectory
+    turbine: TurbineParams
+    odometry: SE3 | None = None
+    gt_world_T_cam: SE3 | None = None
+    gt_turbine: TurbineParams | None = None
+
+    @property
+    def timestamps(self) -> NDArray[np.float64]:
+        return self.keyframes.timestamps
+
+    @property
+    def num_keyframes(self) -> int:
+        return len(self.keyframes.timestamps)
+
+    def heatmap_path(self, k: int) -> Path:
+        """The heat-map file of keyframe ``k``."""
+        return self.root / HEATMAP_DIR / heatmap_filename(float(self.timestamps[k]))
+
+    def read_heatmaps(self, mmap: bool = True) -> HeatmapStack:
+        """The heat-maps of ``heatmaps/`` (see :func:`read_heatmaps`)."""
+        hm_dir = self.root / HEATMAP_DIR
+        kind = _kind(hm_dir)
+        if kind is None:
+            raise InputError("required heat-map directory of a flight folder is missing (or "
+                             f"give photos in {IMAGE_DIR}/ to detect them)", path=hm_dir)
+        return read_heatmaps(hm_dir, self.timestamps, self.camera.height, self.camera.width,
+                             mmap=mmap, keyframes_file=self.root / KEYFRAMES_FILE,
+                             keyframe_lines=self.keyframes.lines)
+
+    def flight(self, heatmaps: HeatmapStack, camera: PinholeCamera | None = None) -> Flight:
+        """The :class:`Flight` with these heat-maps, whose pixel grid is ``camera`` (default:
+        ``camera.yaml``'s; e.g. the photo's camera resized to the detection size)."""
+        try:
+            return Flight(camera=camera or self.camera, timestamps=self.timestamps,
+                          world_T_cam=self.keyframes.poses, heatmaps=heatmaps,
+                          turbine=self.turbine, odometry=self.odometry,
+                          gt_world_T_cam=self.gt_world_T_cam, gt_turbine=self.gt_turbine)
+        except ValueError as e:  # heat-maps given by the caller
+            raise InputError(str(e), path=self.root) from e
+
+
+def read_flight_folder(folder: StrPath) -> FlightFolder:
+    """Read everything of a flight folder but its heat-maps (layout in the module
+    docstring): the camera, keyframes, initial turbine and the optional files.
 
     Raises:
         InputError: naming the file (and line or field) of the first problem found.
@@ -364,14 +406,6 @@ def read_flight(folder: StrPath, mmap: bool = True,
     kf_path = _required(root / KEYFRAMES_FILE)
     keyframes = read_tum_lines(kf_path)
     turbine = read_turbine_yaml(_required(root / TURBINE_FILE))
-    hm_dir = root / HEATMAP_DIR
-    hm_kind = _kind(hm_dir)
-    if heatmaps is None and hm_kind is None:
-        raise InputError("required heat-map directory of a flight folder is missing (or "
-                         f"give photos in {IMAGE_DIR}/ to detect them)", path=hm_dir)
-    if heatmaps is None and hm_kind != "dir":
-        raise InputError("not a directory (expected the heat-map folder)", path=hm_dir)
-
     odometry = gt_poses = None
     gt_turbine: TurbineParams | None = None
     if _kind(root / ODOMETRY_FILE) is not None:
@@ -380,19 +414,27 @@ def read_flight(folder: StrPath, mmap: bool = True,
         gt_poses = _read_matching_tum(root / GT_POSES_FILE, keyframes, kf_path)
     if _kind(root / GT_TURBINE_FILE) is not None:
         gt_turbine = read_turbine_yaml(root / GT_TURBINE_FILE)
+    return FlightFolder(root, camera, keyframes, turbine, odometry, gt_poses, gt_turbine)
 
-    if callable(heatmaps):
-        camera, heatmaps = heatmaps(camera, keyframes.timestamps)
-    elif heatmaps is None:
-        heatmaps = read_heatmaps(hm_dir, keyframes.timestamps, camera.height, camera.width,
-                                 mmap=mmap, keyframes_file=kf_path,
-                                 keyframe_lines=keyframes.lines)
-    try:
-        return Flight(camera=camera, timestamps=keyframes.timestamps,
-                      world_T_cam=keyframes.poses, heatmaps=heatmaps, turbine=turbine,
-                      odometry=odometry, gt_world_T_cam=gt_poses, gt_turbine=gt_turbine)
-    except ValueError as e:  # heat-maps given by the caller
-        raise InputError(str(e), path=root) from e
+
+def read_flight(folder: StrPath, mmap: bool = True,
+                heatmaps: HeatmapStack | None = None) -> Flight:
+    """Read a flight folder (layout in the module docstring) with its heat-maps.
+
+    Args:
+        folder: the flight folder.
+        mmap: memory-map the heat-maps (default; only headers are read) or load them into
+            one (N, 7, H, W) float32 array.
+        heatmaps: None = read ``heatmaps/``; else the heat-maps to use instead (one per
+            keyframe, at the camera's size). Heat-maps detected from ``images/`` come from
+            :class:`turbinefit.jobs.sources.PhotoHeatmaps` (see
+            :func:`turbinefit.jobs.sources.open_heatmaps`).
+
+    Raises:
+        InputError: naming the file (and line or field) of the first problem found.
+    """
+    meta = read_flight_folder(folder)
+    return meta.flight(meta.read_heatmaps(mmap) if heatmaps is None else heatmaps)
 
 
 #: The flight folder's sub-folders: which file names they may hold, and what those are.

@@ -1,6 +1,5 @@
-"""Figures: the package's only matplotlib user.
-
-Every function writes one PNG and returns its path:
+"""Figures of one flight: the scene in 3-D, reprojections over the heat-maps, per-keyframe
+errors, the cost per iteration and the tracker's latency (what ``fit`` and ``track`` write).
 
 * :func:`plot_scene` -- the paper's Fig. 3 ("synth_output_figure"): turbine skeletons and
   camera trajectories in 3-D (ground truth green, initial red, optimised blue) plus a
@@ -8,18 +7,14 @@ Every function writes one PNG and returns its path:
 * :func:`plot_reprojections` -- the paper's real-data figures: a grid of keyframes, each
   showing its heat-maps with the turbine model projected from the initial (red) and the
   optimised (green) estimate.
-* :func:`plot_errors` -- per-keyframe position / orientation error, initial vs optimised.
+* :func:`plot_errors` -- per-keyframe position / orientation error, initial vs optimised;
+  :func:`plot_pose_errors` computes them from the poses.
 * :func:`plot_cost_history` -- the LM cost per iteration (log scale).
 * :func:`plot_latency` -- the tracker's per-keyframe update time.
 
 Conventions: poses are ``world_T_cam`` (camera-to-world) :class:`~turbinefit.geometry.se3.SE3`
 batches, the camera frame is OpenCV (x right, y down, z forward), world units are metres.
-
-The functions draw on a bare :class:`matplotlib.figure.Figure` with the Agg canvas (no
-pyplot, no global figure registry, works headless), import matplotlib only when called (so
-``import turbinefit`` stays fast), create missing parent directories, and write atomically
-(``<name>.tmp.png`` then :func:`os.replace`). Empty inputs or a turbine out of view give a
-sparse figure, never an exception.
+Empty inputs or a turbine out of view give a sparse figure, never an exception.
 """
 
 from __future__ import annotations
@@ -33,103 +28,36 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
-from turbinefit.eval.metrics import line_fit
 from turbinefit.geometry.camera import MIN_DEPTH, PinholeCamera
-from turbinefit.geometry.se3 import SE3
+from turbinefit.geometry.se3 import SE3, pose_errors
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.turbine.model import (
-    LINES,
     PAPER_GEOMETRY,
     TurbineGeometry,
     TurbineParams,
-    model_points,
 )
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
-FloatArray = NDArray[np.float64]
-
-#: Resolution of every PNG [dots per inch].
-DPI = 150
-#: Colours of the paper's figures.
-GT_COLOUR = "#2ca02c"  # ground truth: green
-INITIAL_COLOUR = "#d62728"  # initial estimate: red
-OPTIMISED_COLOUR = "#1f77b4"  # optimised estimate: blue (scene figure)
-CAUSAL_COLOUR = "#ff7f0e"  # tracker's estimate on arrival: orange
-REPROJ_INITIAL_COLOUR = "#ff2a2a"  # initial estimate over heat-maps: bright red
-REPROJ_OPTIMISED_COLOUR = "#39ff14"  # optimised estimate over heat-maps: bright green
-#: Samples per 3-D line when projecting the skeleton (end points included).
-LINE_SAMPLES = 50
-#: Image coordinates beyond this many pixels are not drawn (near-singular projections).
-_MAX_PIXEL = 1e5
-
-
-# ---------------------------------------------------------------------------------------
-# helpers
-# ---------------------------------------------------------------------------------------
-def _new_figure(width: float, height: float) -> Figure:
-    """A figure not registered with pyplot, on the Agg canvas."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=DPI)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
-    """Write ``fig`` to ``path`` as PNG atomically, then release the figure."""
-    out = Path(path)
-    if not out.parent.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".tmp.png")
-    try:
-        fig.savefig(tmp, format="png", dpi=DPI)
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-        fig.clear()
-    return out
-
-
-def _as_batch(poses: SE3 | None) -> SE3:
-    """Poses as a flat batch (N, 7) (N may be 0)."""
-    if poses is None:
-        return SE3(np.zeros((0, 7)))
-    return SE3(np.asarray(poses.wxyz_xyz, dtype=np.float64).reshape(-1, 7))
-
-
-def _skeleton(turbine: TurbineParams, geometry: TurbineGeometry) -> FloatArray:
-    """The six model points (6, 3) [m] of a turbine."""
-    pts, _ = model_points(turbine.to_vector(), geometry)
-    return pts
-
-
-def _line_polyline(points: FloatArray, n: int = LINE_SAMPLES) -> FloatArray:
-    """All model lines sampled densely, as one polyline (5 * (n + 1), 3) with NaN breaks."""
-    s = np.linspace(0.0, 1.0, n)[:, None]
-    parts = []
-    for a, b, _ in LINES:
-        parts.append(points[a] * (1.0 - s) + points[b] * s)
-        parts.append(np.full((1, 3), np.nan))
-    return np.concatenate(parts, axis=0)
-
-
-def choose_keyframes(n_keyframes: int, count: int = 6) -> list[int]:
-    """Up to ``count`` keyframe indices spread evenly over ``0 .. n_keyframes - 1``, first
-    and last included (all of them if there are no more than ``count``)."""
-    n, c = int(n_keyframes), int(count)
-    if n <= 0 or c <= 0:
-        return []
-    if c >= n:
-        return list(range(n))
-    if c == 1:
-        return [(n - 1) // 2]
-    idx = np.round(np.linspace(0.0, n - 1.0, c)).astype(int)
-    return sorted({int(i) for i in idx})
+from turbinefit.plots.common import (
+    CAUSAL_COLOUR,
+    GT_COLOUR,
+    INITIAL_COLOUR,
+    MAX_PIXEL,
+    OPTIMISED_COLOUR,
+    REPROJ_INITIAL_COLOUR,
+    REPROJ_OPTIMISED_COLOUR,
+    FloatArray,
+    as_batch,
+    as_series,
+    choose_keyframes,
+    line_polyline,
+    mean_label,
+    new_figure,
+    save_png,
+    skeleton_points,
+)
 
 
 # ---------------------------------------------------------------------------------------
@@ -158,7 +86,7 @@ def _frusta(poses: SE3, keyframes: Sequence[int], size: float) -> FloatArray:
     return np.concatenate(parts, axis=0)
 
 
-def _finite_rows(a: FloatArray) -> FloatArray:
+def finite_rows(a: FloatArray) -> FloatArray:
     a = a.reshape(-1, 3)
     return a[np.all(np.isfinite(a), axis=1)]
 
@@ -199,16 +127,16 @@ def plot_scene(
 
     sets: list[tuple[str, str, SE3, TurbineParams | None]] = []
     if gt_poses is not None or gt_turbine is not None:
-        sets.append(("ground truth", GT_COLOUR, _as_batch(gt_poses), gt_turbine))
-    sets.append(("initial", INITIAL_COLOUR, _as_batch(initial_poses), initial_turbine))
-    sets.append(("optimised", OPTIMISED_COLOUR, _as_batch(optimised_poses), optimised_turbine))
+        sets.append(("ground truth", GT_COLOUR, as_batch(gt_poses), gt_turbine))
+    sets.append(("initial", INITIAL_COLOUR, as_batch(initial_poses), initial_turbine))
+    sets.append(("optimised", OPTIMISED_COLOUR, as_batch(optimised_poses), optimised_turbine))
 
-    skeletons = {name: _skeleton(t, geometry) for name, _, _, t in sets if t is not None}
+    skeletons = {name: skeleton_points(t, geometry) for name, _, _, t in sets if t is not None}
     positions = {name: p.translation.reshape(-1, 3) for name, _, p, _ in sets}
 
     # scene extent -> frustum size and equal-scaled limits
     everything = np.concatenate(
-        [_finite_rows(x) for x in (*skeletons.values(), *positions.values())] + [np.zeros((0, 3))]
+        [finite_rows(x) for x in (*skeletons.values(), *positions.values())] + [np.zeros((0, 3))]
     )
     if everything.shape[0] == 0:
         everything = np.zeros((1, 3))
@@ -216,7 +144,7 @@ def plot_scene(
     extent = float(max(np.max(hi - lo), 1.0))
     frustum_size = 0.045 * extent
 
-    fig = _new_figure(15.0, 7.5)
+    fig = new_figure(15.0, 7.5)
     ax3: Any = fig.add_axes((0.0, 0.04, 0.58, 0.86), projection="3d")
     ax2 = fig.add_axes((0.62, 0.15, 0.36, 0.74))
 
@@ -245,7 +173,7 @@ def plot_scene(
         # turbine
         if turbine is not None:
             sk = skeletons[name]
-            poly = _line_polyline(sk, 2)
+            poly = line_polyline(sk, 2)
             ax3.plot(poly[:, 0], poly[:, 1], poly[:, 2], color=colour, lw=2.6,
                      solid_capstyle="round")
             ax3.scatter(sk[:, 0], sk[:, 1], sk[:, 2], color=colour, s=14, depthshade=False)
@@ -254,7 +182,7 @@ def plot_scene(
             ax2.plot(sk[0, 0], sk[0, 1], "s", color=colour, ms=7, mfc="none", mew=1.5)
 
     # equal axis scaling in 3-D: limits padded around the data, box aspect = data ranges
-    allp = np.concatenate([everything, *[_finite_rows(f) for f in frusta_pts]])
+    allp = np.concatenate([everything, *[finite_rows(f) for f in frusta_pts]])
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     lo[2] = min(lo[2], 0.0)  # show the ground
     span = hi - lo
@@ -297,7 +225,7 @@ def plot_scene(
         title = "Turbine model and drone trajectory: " + ", ".join(
             f"{name} ({colours[c]})" for name, c, _, _ in sets)
     fig.suptitle(title, fontsize=12)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------
@@ -315,7 +243,7 @@ def _heatmap_composite(maps: NDArray[np.floating]) -> FloatArray:
     return np.clip(rgb, 0.0, 1.0)
 
 
-def _project_skeleton(
+def _projectskeleton_points(
     camera: PinholeCamera, world_T_cam: SE3, points: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Pixels of the densely sampled model lines (M, 2; NaN where not drawable: behind the
@@ -323,11 +251,11 @@ def _project_skeleton(
     likewise). Out-of-image pixels are kept: the axes clip them at the border."""
     cam_T_world = world_T_cam.inverse()
     out = []
-    for world_p in (_line_polyline(points), points):
+    for world_p in (line_polyline(points), points):
         finite = np.all(np.isfinite(world_p), axis=1)
         cam_p = cam_T_world @ np.where(finite[:, None], world_p, 0.0)
         uv, front, _ = camera.project_unbounded(cam_p)
-        ok = finite & front & (cam_p[:, 2] > MIN_DEPTH) & np.all(np.abs(uv) < _MAX_PIXEL, axis=1)
+        ok = finite & front & (cam_p[:, 2] > MIN_DEPTH) & np.all(np.abs(uv) < MAX_PIXEL, axis=1)
         out.append(np.where(ok[:, None], uv, np.nan))
     return out[0], out[1]
 
@@ -383,8 +311,8 @@ def plot_reprojections(
     """
     from matplotlib.lines import Line2D
 
-    init = _as_batch(initial_poses)
-    opt = _as_batch(optimised_poses)
+    init = as_batch(initial_poses)
+    opt = as_batch(optimised_poses)
     kfs = [int(k) for k in keyframes]
     n_avail = min(len(heatmaps), len(init), len(opt))
     bad = [k for k in kfs if not 0 <= k < n_avail]
@@ -395,14 +323,14 @@ def plot_reprojections(
     times = None if timestamps is None else np.asarray(timestamps, dtype=np.float64).ravel()
 
     skeletons = (
-        ("initial", REPROJ_INITIAL_COLOUR, init, _skeleton(initial_turbine, geometry)),
-        ("optimised", REPROJ_OPTIMISED_COLOUR, opt, _skeleton(optimised_turbine, geometry)),
+        ("initial", REPROJ_INITIAL_COLOUR, init, skeleton_points(initial_turbine, geometry)),
+        ("optimised", REPROJ_OPTIMISED_COLOUR, opt, skeleton_points(optimised_turbine, geometry)),
     )
     W, H = camera.width, camera.height
     rows, cols = _grid(len(kfs))
     panel_w = 4.2
     panel_h = panel_w * H / W + 0.45
-    fig = _new_figure(cols * panel_w, rows * panel_h + 0.5)
+    fig = new_figure(cols * panel_w, rows * panel_h + 0.5)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.5 / (rows * panel_h + 0.5) + 0.01,
                         top=1.0 - 0.3 / (rows * panel_h + 0.5), wspace=0.04, hspace=0.14)
     axes: list[Axes] = [fig.add_subplot(rows, cols, i + 1) for i in range(rows * cols)]
@@ -417,7 +345,7 @@ def plot_reprojections(
         ax.imshow(_heatmap_composite(heatmaps[k]), extent=(-0.5, W - 0.5, H - 0.5, -0.5),
                   interpolation="bilinear")
         for _, colour, poses, sk in skeletons:
-            lines_uv, points_uv = _project_skeleton(camera, poses[k], sk)
+            lines_uv, points_uv = _projectskeleton_points(camera, poses[k], sk)
             ax.plot(lines_uv[:, 0], lines_uv[:, 1], color=colour, lw=1.3, alpha=0.95)
             ax.plot(points_uv[:, 0], points_uv[:, 1], "o", color=colour, ms=4.5, mec="black",
                     mew=0.5)
@@ -438,23 +366,12 @@ def plot_reprojections(
                label="heat-map: points"),
     ]
     fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=8.5, frameon=False)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------
 # errors and cost history
 # ---------------------------------------------------------------------------------------
-def _series(values: ArrayLike | None) -> FloatArray:
-    if values is None:
-        return np.zeros(0)
-    return np.asarray(values, dtype=np.float64).ravel()
-
-
-def _mean_label(name: str, v: FloatArray, unit: str) -> str:
-    finite = v[np.isfinite(v)]
-    return f"{name} (mean {np.mean(finite):.3g} {unit})" if finite.size else name
-
-
 def plot_errors(
     path: str | os.PathLike[str],
     *,
@@ -480,11 +397,11 @@ def plot_errors(
     Returns:
         ``Path(path)``.
     """
-    series = [_series(v) for v in (initial_pos_err, optimised_pos_err, initial_rot_err_deg,
+    series = [as_series(v) for v in (initial_pos_err, optimised_pos_err, initial_rot_err_deg,
                                    optimised_rot_err_deg)]
-    causal = [_series(causal_pos_err), _series(causal_rot_err_deg)]
+    causal = [as_series(causal_pos_err), as_series(causal_rot_err_deg)]
     n = max(s.size for s in series)
-    t = _series(timestamps)
+    t = as_series(timestamps)
     if t.size >= n and n > 0 and np.all(np.isfinite(t[:n])):
         x = t - t[0]
         xlabel = "time since first keyframe [s]"
@@ -492,7 +409,7 @@ def plot_errors(
         x = np.arange(n, dtype=np.float64)
         xlabel = "keyframe"
 
-    fig = _new_figure(9.0, 6.0)
+    fig = new_figure(9.0, 6.0)
     ax_p = fig.add_subplot(2, 1, 1)
     ax_r = fig.add_subplot(2, 1, 2, sharex=ax_p)
     for ax, (ini, opt), cau, unit, ylabel in (
@@ -505,7 +422,7 @@ def plot_errors(
         lines.append((opt, "final" if cau.size else "optimised", OPTIMISED_COLOUR))
         for v, name, colour in lines:
             ax.plot(x[: v.size], v, color=colour, lw=1.4, marker="." if v.size <= 60 else None,
-                    label=_mean_label(name, v, unit))
+                    label=mean_label(name, v, unit))
         ax.set_ylabel(ylabel)
         ax.set_ylim(bottom=0.0)
         ax.grid(True, color="0.9", lw=0.6)
@@ -515,7 +432,7 @@ def plot_errors(
     ax_p.set_title("Per-keyframe pose error: initial vs " + (
         "tracked" if causal[0].size else "optimised"), fontsize=11)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[float],
@@ -531,14 +448,14 @@ def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[floa
     Returns:
         ``Path(path)``.
     """
-    c = _series(list(history_costs))
+    c = as_series(list(history_costs))
     it = np.arange(c.size)
     ok = np.isfinite(c) & (c > 0)
     names = list(stages) if stages is not None else [""] * c.size
     if len(names) != c.size:
         raise ValueError(f"{c.size} costs but {len(names)} stage names")
 
-    fig = _new_figure(7.0, 4.2)
+    fig = new_figure(7.0, 4.2)
     ax = fig.add_subplot(1, 1, 1)
     palette = [OPTIMISED_COLOUR, "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b"]
     order = list(dict.fromkeys(names))
@@ -565,7 +482,7 @@ def plot_cost_history(path: str | os.PathLike[str], history_costs: Sequence[floa
 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_latency(path: str | os.PathLike[str], latency_ms: ArrayLike,
@@ -578,8 +495,8 @@ def plot_latency(path: str | os.PathLike[str], latency_ms: ArrayLike,
     Returns:
         ``Path(path)``.
     """
-    lat = _series(latency_ms)
-    fig = _new_figure(8.0, 4.2)
+    lat = as_series(latency_ms)
+    fig = new_figure(8.0, 4.2)
     ax = fig.add_subplot(1, 1, 1)
     idx = np.arange(lat.size, dtype=np.float64)
     ok = np.isfinite(lat)
@@ -602,167 +519,19 @@ def plot_latency(path: str | os.PathLike[str], latency_ms: ArrayLike,
     ax.legend(loc="upper right", fontsize=8.5)
     ax.set_title(f"Tracker latency per keyframe ({lat.size} keyframes)", fontsize=11)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
-# ---------------------------------------------------------------------------------------
-# experiments
-# ---------------------------------------------------------------------------------------
-_PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
-
-
-def _scatter_fit(ax: Axes, data: dict[str, tuple[FloatArray, FloatArray]], unit: str,
-                 what: str) -> None:
-    top = 0.0
-    for k, (name, (x, y)) in enumerate(data.items()):
-        x, y = _series(x), _series(y)
-        ok = np.isfinite(x) & np.isfinite(y)
-        colour = _PALETTE[k % len(_PALETTE)]
-        ax.plot(x[ok], y[ok], "o", ms=3.0, alpha=0.45, color=colour, mec="none")
-        label = name
-        a, b = line_fit(x[ok], y[ok])
-        if np.isfinite(a):
-            xs = np.array([x[ok].min(), x[ok].max()])
-            ax.plot(xs, a * xs + b, color=colour, lw=1.8)
-            label = f"{name}: y = {a:.3f} x {'+' if b >= 0 else '-'} {abs(b):.3f}"
-        ax.plot([], [], "o-", color=colour, label=label)
-        if ok.any():
-            top = max(top, float(np.percentile(y[ok], 99)))
-    ax.set_xlabel(f"initial mean {what} error [{unit}]")
-    ax.set_ylabel(f"final mean {what} error [{unit}]")
-    ax.set_xlim(left=0.0)
-    ax.set_ylim(0.0, top * 1.1 if top > 0 else 1.0)
-    ax.grid(True, color="0.9", lw=0.6)
-    ax.legend(loc="upper left", fontsize=7.5)
-
-
-def plot_error_scatter(path: str | os.PathLike[str],
-                       position: dict[str, tuple[ArrayLike, ArrayLike]],
-                       orientation: dict[str, tuple[ArrayLike, ArrayLike]],
-                       title: str = "") -> Path:
-    """The paper's Figs. 4 and 5: per flight, initial against final mean position error
-    [m] (left) and orientation error [deg] (right), one colour per configuration, each with
-    its least-squares line (in the legend). The y axis stops at the 99th percentile.
-
-    Returns:
-        ``Path(path)``.
-    """
-    fig = _new_figure(12.0, 5.0)
-    ax_p = fig.add_subplot(1, 2, 1)
-    ax_o = fig.add_subplot(1, 2, 2)
-    _scatter_fit(ax_p, {k: (np.asarray(a), np.asarray(b)) for k, (a, b) in position.items()},
-                 "m", "position")
-    _scatter_fit(ax_o, {k: (np.asarray(a), np.asarray(b)) for k, (a, b) in orientation.items()},
-                 "deg", "orientation")
-    if title:
-        fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def plot_turbine_recovery(path: str | os.PathLike[str], initial_m: ArrayLike,
-                          final_m: ArrayLike,
-                          params: dict[str, tuple[ArrayLike, ArrayLike]]) -> Path:
-    """The paper's Fig. 6: initial against optimised mean 3-D error of the six model
-    points per flight (left, with the least-squares line), and the median absolute error
-    of each turbine parameter before and after (right, log scale; metres or degrees as the
-    names say).
-
-    Returns:
-        ``Path(path)``.
-    """
-    fig = _new_figure(12.0, 5.0)
-    ax = fig.add_subplot(1, 2, 1)
-    _scatter_fit(ax, {"joint": (_series(initial_m), _series(final_m))}, "m", "model-point")
-    ax2 = fig.add_subplot(1, 2, 2)
-    names = list(params)
-    before = [float(np.median(_series(params[n][0]))) for n in names]
-    after = [float(np.median(_series(params[n][1]))) for n in names]
-    x = np.arange(len(names))
-    ax2.bar(x - 0.2, before, 0.4, color=INITIAL_COLOUR, label="initial")
-    ax2.bar(x + 0.2, after, 0.4, color=OPTIMISED_COLOUR, label="optimised")
-    ax2.set_xticks(x, names, rotation=30, ha="right", fontsize=8)
-    if all(v > 0 for v in before + after):
-        ax2.set_yscale("log")
-    ax2.set_ylabel("median absolute error (m or deg)")
-    ax2.grid(True, axis="y", color="0.9", lw=0.6)
-    ax2.legend(fontsize=8.5)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def plot_roll(path: str | os.PathLike[str], series: dict[str, ArrayLike]) -> Path:
-    """The roll artefact (paper Fig. 7): the mean absolute camera roll error [deg] of each
-    flight, one box per estimate (initial, pose-only, joint).
-
-    Returns:
-        ``Path(path)``.
-    """
-    fig = _new_figure(6.5, 4.2)
-    ax = fig.add_subplot(1, 1, 1)
-    names = list(series)
-    data = [_series(series[n]) for n in names]
-    ax.boxplot(data, tick_labels=names, showmeans=True)
-    ax.set_ylabel("mean |roll error| per flight [deg]")
-    ax.set_ylim(bottom=0.0)
-    ax.grid(True, axis="y", color="0.9", lw=0.6)
-    ax.set_title("Camera roll error with a wrong blade rotation", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def plot_basin(path: str | os.PathLike[str], edges: ArrayLike, rate: ArrayLike,
-               count: ArrayLike) -> Path:
-    """Convergence basin: success rate in bins of the initial turbine-error scale (rows)
-    and pose-error scale (columns), with each bin's flight count.
-
-    Returns:
-        ``Path(path)``.
-    """
-    e = _series(edges)
-    r = np.asarray(rate, dtype=np.float64)
-    c = np.asarray(count)
-    fig = _new_figure(6.5, 5.2)
-    ax = fig.add_subplot(1, 1, 1)
-    im = ax.pcolormesh(e, e, np.ma.masked_invalid(r), vmin=0.0, vmax=1.0, cmap="RdYlGn")
-    for i in range(r.shape[0]):
-        for j in range(r.shape[1]):
-            if c[i, j]:
-                ax.text(0.5 * (e[j] + e[j + 1]), 0.5 * (e[i] + e[i + 1]),
-                        f"{100 * r[i, j]:.0f}%\n(n={c[i, j]})", ha="center", va="center",
-                        fontsize=7)
-    ax.set_xlabel("initial pose error (x default drift)")
-    ax.set_ylabel("initial turbine error (x default sigmas)")
-    fig.colorbar(im, ax=ax, label="success rate")
-    ax.set_title("Convergence basin", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def plot_binned(path: str | os.PathLike[str],
-                panels: Sequence[tuple[str, Sequence[str], dict[str, Sequence[float | None]]]],
-                ylabel: str) -> Path:
-    """One panel per factor: a binned statistic (e.g. the median final error) per
-    configuration against the factor's bins. ``panels`` are (x label, bin labels,
-    {configuration: one value per bin, None where the bin is empty}).
-
-    Returns:
-        ``Path(path)``.
-    """
-    n = max(len(panels), 1)
-    fig = _new_figure(4.6 * n, 4.2)
-    for k, (label, ticks, series) in enumerate(panels):
-        ax = fig.add_subplot(1, n, k + 1)
-        x = np.arange(len(ticks))
-        for j, (name, values) in enumerate(series.items()):
-            v = np.array([np.nan if y is None else y for y in values], dtype=np.float64)
-            ax.plot(x, v, "o-", color=_PALETTE[j % len(_PALETTE)], label=name)
-        ax.set_xticks(x, list(ticks))
-        ax.set_xlabel(label)
-        if k == 0:
-            ax.set_ylabel(ylabel)
-        ax.set_ylim(bottom=0.0)
-        ax.grid(True, color="0.9", lw=0.6)
-        ax.legend(fontsize=7.5)
-    fig.tight_layout()
-    return _save(fig, path)
+def plot_pose_errors(path: str | os.PathLike[str], timestamps: ArrayLike, gt_world_T_cam: SE3,
+                     *, initial: SE3, optimised: SE3, causal: SE3 | None = None) -> Path:
+    """:func:`plot_errors` of poses against the ground truth ``gt_world_T_cam``: the
+    ``initial`` and ``optimised`` estimates and, if given, the tracker's ``causal`` ones."""
+    p0, r0 = pose_errors(initial, gt_world_T_cam)
+    p1, r1 = pose_errors(optimised, gt_world_T_cam)
+    pc = rc = None
+    if causal is not None:
+        pc, rc = pose_errors(causal, gt_world_T_cam)
+    return plot_errors(path, timestamps=timestamps, initial_pos_err=p0, optimised_pos_err=p1,
+                       initial_rot_err_deg=np.degrees(r0), optimised_rot_err_deg=np.degrees(r1),
+                       causal_pos_err=pc,
+                       causal_rot_err_deg=None if rc is None else np.degrees(rc))

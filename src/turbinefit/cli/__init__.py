@@ -1,0 +1,95 @@
+"""The ``turbinefit`` command line: one module per command, a thin layer over
+:mod:`turbinefit.jobs` (and :mod:`turbinefit.experiments`, :mod:`turbinefit.train`).
+
+Each command module has ``add_parser(subparsers, help)`` and ``run(args) -> int``, and
+imports what it runs only inside ``run``: ``turbinefit --help`` builds every command as a
+stub and loads no command module; ``turbinefit COMMAND ...`` builds and loads that one.
+Every command prints one clear line and exits with status 2 on bad input (no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Collection, Sequence
+from types import ModuleType
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+#: Every command: name -> one line of help (the module is ``turbinefit.cli.<name>``).
+COMMANDS: dict[str, str] = {
+    "simulate": "write a simulated flight folder with ground truth",
+    "fit": "optimise poses and turbine of a flight folder",
+    "track": "replay a flight keyframe by keyframe (in-flight tracking)",
+    "experiment": "Monte Carlo studies of the paper (simulated flights)",
+    "report": "rebuild an experiment's figures and report from its rows",
+    "detect": "heat-maps of photos with the CNN (onnxruntime)",
+    "evaluate": "detection metrics of the CNN on labelled photos (COCO keypoints)",
+    "train": "train the heat-map CNN on rendered photos (needs turbinefit[train])",
+}
+
+FLIGHT_FOLDER_HELP = """\
+Flight folder (input of fit and track, output of simulate):
+  camera.yaml                 ROS/OpenCV camera_info (image size, camera_matrix, plumb_bob)
+  keyframes.txt               TUM 'timestamp tx ty tz qx qy qz qw', initial world_T_cam
+  odometry.txt                optional TUM; its consecutive relative poses are the
+                              pairwise measurements (default: those of keyframes.txt)
+  turbine.yaml                initial turbine parameters (metres, radians)
+  heatmaps/<t %.6f>.npy       float32 (7, H, W): point_base, point_tower_top, point_hub,
+                              point_blade_tip, line_tower, line_nacelle, line_blade
+  images/<t %.6f>.png|.jpg    optional photos; fit detects heat-maps from them when
+                              heatmaps/ is absent (or with --from-images)
+  groundtruth.txt, turbine_groundtruth.yaml   optional ground truth
+  simulation.yaml             written by simulate (its settings); not read by fit
+
+Run 'turbinefit COMMAND --help' for a command's options.
+"""
+
+
+def _module(name: str) -> ModuleType:
+    return importlib.import_module(f"turbinefit.cli.{name}")
+
+
+def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The argument parser; ``commands``: those built with all their options (None =
+    all), the others as stubs that only name themselves."""
+    from turbinefit.cli.common import version
+
+    p = argparse.ArgumentParser(
+        prog="turbinefit",
+        description="Simultaneous drone localisation and wind-turbine model fitting from CNN "
+        "heat-maps (Moolan-Feroze et al., IROS 2019).",
+        epilog=FLIGHT_FOLDER_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=version())
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, text in COMMANDS.items():
+        if commands is None or name in commands:
+            _module(name).add_parser(sub, text)
+        else:
+            sub.add_parser(name, help=text)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``turbinefit`` command."""
+    args_in = list(sys.argv[1:] if argv is None else argv)
+    # the command is the first word that is not an option (the top level has no option
+    # that takes a value)
+    command = next((a for a in args_in if not a.startswith("-")), None)
+    try:
+        parser = build_parser({command} if command in COMMANDS else ())
+        args = parser.parse_args(args_in)
+        from turbinefit.errors import TurbinefitError
+
+        try:
+            return int(_module(args.command).run(args))
+        except TurbinefitError as exc:
+            print(f"turbinefit: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("turbinefit: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

@@ -1,0 +1,272 @@
+"""What several commands share: argument types, the help formatter, the options of photo
+detection and of the fit (generated from :class:`~turbinefit.solver.config.FitConfig`),
+and progress output.
+
+Imports only the standard library at module level; the fit options import
+:mod:`turbinefit.solver.config` when a parser that has them is built.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import inspect
+import itertools
+import math
+import textwrap
+import typing
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from turbinefit.detect import DetectOptions
+    from turbinefit.solver.config import FitConfig
+
+
+# ---- argument types ----------------------------------------------------------------------
+
+def whole_number(text: str, minimum: int, why: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < minimum:
+        raise argparse.ArgumentTypeError(f"{why}, got {v}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    return whole_number(text, 1, "must be at least 1")
+
+
+def whole_nonneg(text: str) -> int:
+    return whole_number(text, 0, "must be >= 0")
+
+
+def seed(text: str) -> int:
+    return whole_number(text, 0, "must be a non-negative whole number")
+
+
+def number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def positive_number(text: str) -> float:
+    v = number(text)
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return v
+
+
+class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Appends an option's default to its help, unless the help already says it or the
+    default is None or a flag's False (nothing worth saying)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default is None or action.default is False or "(default" in text:
+            return text
+        return super()._get_help_string(action) or text
+
+
+def version() -> str:
+    from turbinefit import __version__
+
+    return f"turbinefit {__version__}"
+
+
+def degrees(x: float) -> float:
+    return math.degrees(x)
+
+
+def turbine_line(th: Any) -> str:
+    """One line describing a :class:`~turbinefit.turbine.model.TurbineParams`."""
+    return (f"turbine: base ({th.base_x:.2f}, {th.base_y:.2f}) m, tower {th.tower_height:.2f} m, "
+            f"heading {degrees(th.heading):.2f} deg, nacelle {th.nacelle_length:.2f} m, "
+            f"blade rotation {degrees(th.blade_rotation):.2f} deg, blades "
+            f"{th.blade_length:.2f} m")
+
+
+# ---- photo detection ---------------------------------------------------------------------
+
+def _tip_shift(text: str) -> float:
+    from turbinefit.detect import TIP_SHIFT_TAPER_PX, valid_tip_shift
+
+    v = number(text)
+    if not valid_tip_shift(v):
+        raise argparse.ArgumentTypeError(
+            f"must be a number of pixels between -{TIP_SHIFT_TAPER_PX:g} and "
+            f"{TIP_SHIFT_TAPER_PX:g}, got {text!r}")
+    return v
+
+
+def add_detect_options(parser: argparse.ArgumentParser) -> None:
+    """--no-flip, --tip-shift and --no-zoom: args.flip and args.zoom are False when given,
+    else None; args.tip_shift a number when given, else None (the model's metadata decides
+    what is None; :func:`detect_options` gathers them)."""
+    parser.add_argument("--no-flip", dest="flip", action="store_false", default=None,
+                        help="run the CNN once per photo instead of averaging its maps with "
+                        "those of the mirror image (faster, less accurate; default: as the "
+                        "model's metadata says, flip averaging for the shipped model)")
+    parser.add_argument("--tip-shift", type=_tip_shift, default=None, metavar="PX",
+                        help="move the blade-tip heat-map this many pixels (at the model's "
+                        "input width) outward from the detected hub, undoing the net's "
+                        "inboard bias; 0 keeps the net's own (default: the value "
+                        "calibrated for the model, turbinefit.tip_shift_px in its "
+                        "metadata)")
+    parser.add_argument("--no-zoom", dest="zoom", action="store_false", default=None,
+                        help="no second pass of the CNN on an enlarged crop around small "
+                        "turbines to find their blade tips (faster on far views, fewer tips "
+                        "found; default: as the model's metadata says, zoom for the shipped "
+                        "model)")
+
+
+def detect_options(args: argparse.Namespace) -> DetectOptions:
+    """The :class:`~turbinefit.detect.DetectOptions` of :func:`add_detect_options`."""
+    from turbinefit.detect import DetectOptions
+
+    return DetectOptions(flip=args.flip, tip_shift=args.tip_shift, zoom=args.zoom)
+
+
+def add_model_options(parser: argparse.ArgumentParser) -> None:
+    """--model, --threads and the detection options (``detect`` and ``evaluate``)."""
+    parser.add_argument("--model", type=Path, default=None,
+                        help="ONNX model (default: the shipped model)")
+    parser.add_argument("--threads", type=positive_int, default=None,
+                        help="photos detected at once, one inference thread each "
+                        "(default: one per core)")
+    add_detect_options(parser)
+
+
+def add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """--from-images, --model, the detection options and --no-plots (``fit``, ``track``)."""
+    parser.add_argument("--from-images", action="store_true", default=None,
+                        help=f"{what} even if heatmaps/ exists (default: only when heatmaps/ "
+                        "is absent)")
+    parser.add_argument("--model", type=Path, default=None,
+                        help="ONNX heat-map model for detection (default: the shipped one)")
+    add_detect_options(parser)
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+# ---- fit options, generated from FitConfig ------------------------------------------------
+
+#: FitConfig fields with no command-line option (set them in a --config YAML file).
+_YAML_ONLY = frozenset({"geometry", "pair_information"})
+#: FitConfig fields the tracker does not use (the batch fit's limits and warm-up stages).
+_BATCH_ONLY = frozenset({"max_iterations", "max_rounds", "warmup", "warmup_stiffness",
+                         "warmup_align_rounds", "warmup_match_rounds",
+                         "warmup_function_tolerance"})
+#: Further option strings of a field (shorter names kept from earlier versions).
+_ALIASES = {"pair_sigma_r_deg": ("--pair-sigma-r",)}
+#: Fields shown first, in the plain group; the rest are listed as advanced.
+_MAIN = ("mode", "points", "lines", "line_residual", "pair_frame", "robust", "gauge",
+         "warmup", "max_iterations", "max_rounds")
+
+
+def field_docs(cls: type) -> dict[str, str]:
+    """The docstring written under each field of the dataclass ``cls``, whitespace
+    normalised (read from its source, where Python keeps no record of them)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
+    docs: dict[str, str] = {}
+    for prev, node in itertools.pairwise(body):
+        if (isinstance(prev, ast.AnnAssign) and isinstance(prev.target, ast.Name)
+                and isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+                and isinstance(node.value.value, str)):
+            docs[prev.target.id] = " ".join(node.value.value.split())
+    return docs
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> None:
+    """One option per field of :class:`~turbinefit.solver.config.FitConfig` (name, type,
+    choices, help and default from the dataclass and its field docstrings), except those
+    only a YAML file sets; ``batch=False`` (``track``) leaves out those the tracker does
+    not use. Every option defaults to None: unset, the --config or --preset value holds;
+    values are checked by FitConfig itself (:func:`resolve_fit_config`)."""
+    from turbinefit.solver.config import FitConfig
+
+    default = FitConfig()
+    docs = field_docs(FitConfig)
+    hints = typing.get_type_hints(FitConfig)
+    main = parser.add_argument_group("fit options (as in turbinefit.FitConfig; any of them "
+                                     "can also be set in a --config YAML file)")
+    advanced = parser.add_argument_group("advanced fit options")
+    fields = sorted(dataclasses.fields(FitConfig),
+                    key=lambda f: _MAIN.index(f.name) if f.name in _MAIN else len(_MAIN))
+    for f in fields:
+        if f.name in _YAML_ONLY or (not batch and f.name in _BATCH_ONLY):
+            continue
+        group = main if f.name in _MAIN else advanced
+        value = getattr(default, f.name)
+        flags = (f"--{f.name.replace('_', '-')}", *_ALIASES.get(f.name, ()))
+        text = docs.get(f.name, "").replace("%", "%%")
+        kind = hints[f.name]
+        if kind is bool:
+            group.add_argument(*flags, dest=f.name, action=argparse.BooleanOptionalAction,
+                               default=None, help=f"{text} (default: {value})")
+            continue
+        kw: dict[str, Any] = {}
+        if typing.get_origin(kind) is typing.Literal:
+            choices = list(typing.get_args(kind))
+            if not batch and f.name == "mode":
+                choices.remove("turbine")
+            kw["choices"] = choices
+        else:
+            kw["type"] = _integer if kind is int else number
+            kw["metavar"] = "N" if kind is int else "X"
+        group.add_argument(*flags, dest=f.name, default=None,
+                           help=f"{text} (default: {value:g})" if isinstance(value, float)
+                           else f"{text} (default: {value})", **kw)
+
+
+def fit_option_names(args: argparse.Namespace) -> dict[str, Any]:
+    """The fit options given on the command line: {field: value}."""
+    from turbinefit.solver.config import FitConfig
+
+    names = {f.name for f in dataclasses.fields(FitConfig)}
+    return {k: v for k, v in vars(args).items() if k in names and v is not None}
+
+
+def add_flight_job_options(parser: argparse.ArgumentParser, presets: str,
+                           batch: bool = True) -> None:
+    """--out, --config | --preset and the fit options (``fit`` and ``track``)."""
+    parser.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
+                        help="output folder (written atomically; never the input folder)")
+    base = parser.add_mutually_exclusive_group()
+    base.add_argument("--config", type=Path, default=None,
+                      help="YAML file of fit options (e.g. a previous fit's config.yaml)")
+    base.add_argument("--preset", default=None, help=f"named configuration: {presets}")
+    add_fit_options(parser, batch=batch)
+
+
+def resolve_fit_config(args: argparse.Namespace) -> FitConfig:
+    """The FitConfig of --config or --preset (default: FitConfig()) with the command-line
+    fit options on top."""
+    from turbinefit.errors import InputError
+    from turbinefit.io.fit_config import read_fit_config
+    from turbinefit.solver.config import PRESETS, FitConfig
+
+    cfg = FitConfig()
+    if args.config is not None:
+        cfg = read_fit_config(args.config)
+    if args.preset is not None:
+        if args.preset not in PRESETS:
+            raise InputError(f"unknown preset {args.preset!r} (choose from "
+                             f"{', '.join(PRESETS)})", field="--preset")
+        cfg = PRESETS[args.preset]
+    try:
+        return dataclasses.replace(cfg, **fit_option_names(args))
+    except ValueError as exc:
+        raise InputError(str(exc), field="fit options") from None

@@ -1,0 +1,93 @@
+"""``turbinefit fit``: optimise poses and turbine of a flight folder
+(:func:`turbinefit.jobs.fit.fit_folder`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from turbinefit.cli.common import (
+    add_flight_job_options,
+    add_photo_options,
+    detect_options,
+    resolve_fit_config,
+    turbine_line,
+)
+
+DESCRIPTION = """\
+Refine every keyframe pose and the 7 turbine parameters with Levenberg-Marquardt
+on the heat-maps and the GPS/IMU relative poses: first two correspondence
+stages (align: the trajectory moves nearly rigidly; match: each keyframe), then
+the configured cost.
+
+Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs,
+iterations, timings, and errors before/after when ground truth exists),
+config.yaml (the resolved options) and plots. Every option of
+turbinefit.FitConfig can be set in a --config YAML file; command-line options
+override it."""
+
+PRESETS = ("paper-best (default), all-interp, all-corr, paper-worst, corr-normal, pose-only, "
+           "turbine-only")
+
+
+def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
+    f: argparse.ArgumentParser = sub.add_parser(
+        "fit", help=help, description=DESCRIPTION,
+        usage="%(prog)s FLIGHT_DIR --out OUT_DIR [--config FILE | --preset NAME] [options]",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
+    add_flight_job_options(f, PRESETS)
+    add_photo_options(f, "detect the heat-maps from images/")
+    f.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")
+    f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    return f
+
+
+def run(args: argparse.Namespace) -> int:
+    from turbinefit.jobs.fit import FitReport, fit_folder
+
+    cfg = resolve_fit_config(args)
+    bar = None
+    progress = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        # disable=None: no bar when stderr is not a terminal (logs, CI)
+        bar = tqdm(desc="fit", unit="it", file=sys.stderr, dynamic_ncols=True, leave=False,
+                   disable=None)
+
+        def progress(rec: Any) -> None:
+            assert bar is not None
+            bar.update(1)
+            bar.set_postfix_str(f"{rec.stage} round {rec.round} cost {rec.cost:.6g}")
+
+    try:
+        report: FitReport = fit_folder(
+            args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
+            overwrite=args.overwrite, progress=progress, config_path=args.config,
+            from_images=args.from_images, model=args.model, detect_progress=not args.quiet,
+            detect_options=detect_options(args))
+    finally:
+        if bar is not None:
+            bar.close()
+    if not args.quiet:
+        r = report.result
+        t = report.timings
+        print(f"fitted {len(r.world_T_cam)} keyframes in {t['solve']:.2f} s "
+              f"(load {t['load']:.2f} s, total {t['total']:.2f} s): {r.iterations} iterations, "
+              f"{r.rounds} round(s), {r.termination}")
+        print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
+        print(turbine_line(r.turbine))
+        if report.before is not None and report.after is not None:
+            b, a = report.before, report.after
+            print(f"position error     {b.position_error_m:8.3f} m   -> "
+                  f"{a.position_error_m:8.3f} m")
+            print(f"orientation error  {b.orientation_error_deg:8.3f} deg -> "
+                  f"{a.orientation_error_deg:8.3f} deg")
+            print(f"model point error  {b.model_point_error_m:8.3f} m   -> "
+                  f"{a.model_point_error_m:8.3f} m")
+        print(f"wrote {report.out_dir}")
+    return 0

@@ -1,0 +1,115 @@
+"""``turbinefit simulate``: write a simulated flight folder with ground truth
+(:func:`turbinefit.jobs.simulate.simulate_folder`)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from turbinefit.cli.common import DefaultsFormatter, number, positive_int, seed
+
+if TYPE_CHECKING:
+    from turbinefit.sim.scenario import SimConfig
+
+
+def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
+    s: argparse.ArgumentParser = sub.add_parser(
+        "simulate", help=help,
+        description="Simulate an inspection flight around a realistic turbine: ground-truth "
+        "poses and turbine, heat-maps as a CNN would give them, drifting GPS/IMU poses and a "
+        "noisy initial turbine. Writes a flight folder (see `turbinefit --help`).",
+        formatter_class=DefaultsFormatter)
+    s.add_argument("out_dir", metavar="OUT_DIR", type=Path, nargs="?",
+                   help="flight folder to create")
+    s.add_argument("--keyframes", type=positive_int, default=200, help="number of keyframes")
+    s.add_argument("--seed", type=seed, default=0,
+                   help="random seed, >= 0 (same seed, same flight)")
+    s.add_argument("--preset", default="default",
+                   help="simulation preset: default, noiseless, exact, hard, distorted "
+                   "(see --list-presets)")
+    s.add_argument("--turbine", default=None,
+                   help="turbine preset name, or 'random' (default: the preset's)")
+    s.add_argument("--width", type=positive_int, default=None, help="heat-map width [px]")
+    s.add_argument("--height", type=positive_int, default=None, help="heat-map height [px]")
+    s.add_argument("--drift-m", type=number, default=None,
+                   help="order of the GPS/IMU position drift over the flight [m]")
+    s.add_argument("--drift-deg", type=number, default=None,
+                   help="order of the GPS/IMU orientation drift over the flight [deg]")
+    s.add_argument("--turbine-noise", type=number, default=None,
+                   help="scale of the initial turbine's noise (1 = the default sigmas "
+                   "1 m, 1 m, 2 m, 5 deg, 0.5 m, 5 deg, 2 m; 0 = exact)")
+    s.add_argument("--heatmap-noise", type=number, default=None,
+                   help="std. dev. of additive pixel noise on the heat-maps")
+    s.add_argument("--second-turbine", action="store_true",
+                   help="add a second turbine in view (false responses)")
+    s.add_argument("--images", action="store_true",
+                   help="also render a photo of every keyframe into images/ (procedural "
+                   "scene from the seed)")
+    s.add_argument("--list-presets", action="store_true", help="list presets and exit")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace OUT_DIR if it exists (only if it holds nothing but a flight)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    return s
+
+
+def sim_config(args: argparse.Namespace) -> SimConfig:
+    """The :class:`~turbinefit.sim.scenario.SimConfig` of the command line."""
+    from turbinefit.errors import InputError
+    from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
+    from turbinefit.sim.render import HeatmapNoise
+    from turbinefit.sim.scenario import PRESETS
+
+    if args.preset not in PRESETS:
+        raise InputError(f"unknown preset {args.preset!r} (choose from {', '.join(PRESETS)})",
+                         field="--preset")
+    base = PRESETS[args.preset]
+    over: dict[str, Any] = {"n_keyframes": args.keyframes, "seed": args.seed}
+    for name, key in (("width", "width"), ("height", "height"), ("drift_m", "drift_pos_m"),
+                      ("drift_deg", "drift_rot_deg"), ("turbine", "turbine")):
+        if getattr(args, name) is not None:
+            over[key] = getattr(args, name)
+    if args.turbine_noise is not None:
+        over["turbine_sigma"] = tuple(args.turbine_noise * s for s in DEFAULT_TURBINE_SIGMA)
+    if args.heatmap_noise is not None:
+        over["heatmap_noise"] = dataclasses.replace(base.heatmap_noise,
+                                                    pixel_sigma=args.heatmap_noise)
+    if args.second_turbine:
+        over["second_turbine"] = True
+    for key in ("drift_pos_m", "drift_rot_deg"):
+        if key in over and not (math.isfinite(over[key]) and over[key] >= 0):
+            raise InputError(f"must be a non-negative number, got {over[key]}", field=key)
+    # sim.noise / sim.render would fail (turbine) or silently ignore (heat-maps) these
+    for flag, value in (("--turbine-noise", args.turbine_noise),
+                        ("--heatmap-noise", args.heatmap_noise)):
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise InputError(f"must be a non-negative number, got {value}", field=flag)
+    try:
+        cfg = dataclasses.replace(base, **over)
+        HeatmapNoise(**dataclasses.asdict(cfg.heatmap_noise))
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc), field="simulate options") from None
+    return cfg
+
+
+def run(args: argparse.Namespace) -> int:
+    from turbinefit.errors import InputError
+    from turbinefit.jobs.simulate import simulate_folder
+
+    if args.list_presets:
+        from turbinefit.sim.scenario import PRESETS
+        from turbinefit.sim.turbines import PRESETS as TURBINES
+
+        print("simulation presets: " + ", ".join(PRESETS))
+        print("turbine presets:    " + ", ".join([*TURBINES, "random"]))
+        return 0
+    if args.out_dir is None:
+        raise InputError("OUT_DIR is required", field="simulate")
+    cfg = sim_config(args)
+    out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet,
+                          images=args.images)
+    if not args.quiet:
+        print(f"wrote {cfg.n_keyframes} keyframes to {out}")
+    return 0

@@ -1,0 +1,115 @@
+"""Output folders of the jobs: the rules in one place.
+
+Every job writes one output folder (or, for ``evaluate``, one file) atomically
+(:func:`turbinefit.io.atomic.atomic_output_dir`): into a hidden temporary sibling renamed
+into place at the end, so a failure leaves nothing half-written. Before any work, the
+destination is checked:
+
+* it must not be, contain or lie inside any input (a flight folder, a config file, photos);
+* a file or symbolic link there is refused;
+* an existing non-empty folder is refused unless ``overwrite``, and even then unless it
+  holds nothing but what the same command writes (:class:`OutputKind`), a guard against
+  ``--overwrite`` on a wrong path.
+
+The summaries the jobs write (``summary.json``) are dataclasses with a ``to_dict``;
+:func:`summary_json` is their one serialiser.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+from turbinefit.errors import InputError
+from turbinefit.io.atomic import atomic_output_dir, check_output_dir
+
+#: How the command line asks for an existing non-empty output folder to be replaced.
+OVERWRITE_HINT = "use --overwrite"
+
+
+@dataclass(frozen=True)
+class OutputKind:
+    """What one command writes into its output folder.
+
+    Attributes:
+        command: the command's name (for messages).
+        entries: the file names it writes, or None to allow any name with ``suffixes``.
+        suffixes: the file suffixes it writes (with ``entries=None``).
+    """
+
+    command: str
+    entries: frozenset[str] | None = None
+    suffixes: tuple[str, ...] = ()
+
+    def foreign_entry(self, folder: Path) -> str | None:
+        """None if ``folder`` holds nothing but files this command writes (safe to
+        replace), else why not."""
+        for entry in folder.iterdir():
+            ok = (entry.name in self.entries if self.entries is not None
+                  else entry.suffix in self.suffixes)
+            if not ok or not entry.is_file():
+                return f"{entry.name!r} is not an output of turbinefit {self.command}"
+        return None
+
+    def check(self, out_dir: Path, inputs: Iterable[Path], overwrite: bool) -> None:
+        """Refuse ``out_dir`` before any work (see the module docstring)."""
+        check_not_input(out_dir, inputs)
+        check_output_dir(out_dir, overwrite, self.foreign_entry, OVERWRITE_HINT)
+
+    @contextmanager
+    def writing(self, out_dir: Path, overwrite: bool) -> Iterator[Path]:
+        """The temporary folder to fill; renamed to ``out_dir`` when the block succeeds."""
+        with atomic_output_dir(out_dir, overwrite=overwrite,
+                               may_replace=self.foreign_entry) as tmp:
+            yield tmp
+
+
+def check_not_input(out: Path, inputs: Iterable[Path]) -> None:
+    """Refuse an output path that is, contains or lies inside one of ``inputs``."""
+    try:
+        resolved = out.resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symbolic-link loop
+        raise InputError(f"cannot resolve the output path: {exc}", out) from None
+    for src in inputs:
+        try:
+            s = src.resolve()
+        except (OSError, RuntimeError) as exc:
+            raise InputError(f"cannot resolve the input path: {exc}", src) from None
+        if resolved == s or s.is_relative_to(resolved) or resolved.is_relative_to(s):
+            raise InputError(f"output folder would overwrite or nest inside the input {src}",
+                             out)
+
+
+def flight_inputs(flight_dir: Path, config_path: Path | None) -> list[Path]:
+    """The inputs of a job on a flight folder: the folder and the config file, if any."""
+    return [flight_dir] + ([] if config_path is None else [config_path])
+
+
+def plot_error(exc: OSError, out_dir: Path) -> InputError:
+    """The error of a figure that could not be written (e.g. no space left)."""
+    return InputError(f"cannot write the plots: {exc.strerror or exc}", out_dir)
+
+
+class Summary(Protocol):
+    """A job's summary: a dataclass that gives the JSON it is written as."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+def summary_json(summary: Summary) -> str:
+    """The text of ``summary.json``."""
+    return json.dumps(summary.to_dict(), indent=2) + "\n"
+
+
+FIT_OUTPUTS = OutputKind("fit", frozenset({
+    "keyframes.txt", "turbine.yaml", "config.yaml", "summary.json", "scene.png",
+    "reprojections.png", "errors.png", "cost.png"}))
+TRACK_OUTPUTS = OutputKind("track", frozenset({
+    "causal.txt", "keyframes.txt", "turbine.yaml", "latency.csv", "latency.png", "config.yaml",
+    "summary.json", "scene.png", "errors.png"}))
+#: ``detect`` writes ``<stem>.npy`` heat-maps and a ``<stem>.png`` overlay per photo.
+DETECT_OUTPUTS = OutputKind("detect", None, (".npy", ".png"))

@@ -1,0 +1,167 @@
+"""Where a flight's heat-maps come from: one :class:`HeatmapSource`, two kinds.
+
+* :class:`FileHeatmaps`: the flight folder's ``heatmaps/<t>.npy`` (memory-mapped);
+* :class:`PhotoHeatmaps`: detected from the flight folder's ``images/<t>.png|.jpg`` with the
+  heat-map CNN (:mod:`turbinefit.detect`), at a working resolution.
+
+A source serves a whole flight (:meth:`HeatmapSource.stack`, for ``fit``) and a stream
+alike (:meth:`HeatmapSource.keyframe`, one keyframe at a time, for ``track``); the solver
+and the tracker only ever see heat-maps. :func:`open_heatmaps` picks the source of a
+flight folder as the commands do.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.errors import InputError
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.heatmaps import HeatmapStack
+from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
+from turbinefit.io.images import check_image, read_image
+
+if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
+    from turbinefit.detect import DetectOptions, HeatmapDetector
+
+F32Maps = NDArray[np.float32]
+
+#: Heat-maps detected for a fit are at most this wide [px]; a larger camera is resized.
+FIT_DETECT_WIDTH = 320
+
+
+class HeatmapSource(Protocol):
+    """The heat-maps of a flight's keyframes.
+
+    Attributes:
+        camera: intrinsics of the maps' pixel grid (the photos' camera, or resized).
+        description: what the maps are, for summaries (e.g. ``heatmaps/``).
+    """
+
+    camera: PinholeCamera
+    description: str
+
+    def __len__(self) -> int: ...
+
+    def where(self, k: int) -> Path:
+        """The file keyframe ``k``'s maps come from (for error messages)."""
+        ...
+
+    def keyframe(self, k: int) -> F32Maps:
+        """Keyframe ``k``'s maps, (7, H, W) float32 at :attr:`camera`'s size."""
+        ...
+
+    def stack(self, progress: bool = False) -> HeatmapStack:
+        """Every keyframe's maps."""
+        ...
+
+
+class FileHeatmaps:
+    """The heat-maps of a flight folder's ``heatmaps/`` (memory-mapped: only the ``.npy``
+    headers are read until pixels are touched)."""
+
+    description = "heatmaps/"
+
+    def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
+        self.folder = folder
+        self.camera = folder.camera
+        self._stack = folder.read_heatmaps(mmap)
+
+    def __len__(self) -> int:
+        return len(self._stack)
+
+    def where(self, k: int) -> Path:
+        return self.folder.heatmap_path(k)
+
+    def keyframe(self, k: int) -> F32Maps:
+        return np.asarray(self._stack[k])
+
+    def stack(self, progress: bool = False) -> HeatmapStack:
+        return self._stack
+
+
+def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
+    """The camera of heat-maps detected from photos taken with ``camera``: the same, or
+    resized to ``width`` px wide if it is wider (detection at a working resolution)."""
+    if camera.width <= width:
+        return camera
+    return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+
+
+class PhotoHeatmaps:
+    """Heat-maps detected from a flight folder's ``images/`` with the ONNX ``model``
+    (None = the shipped one) and ``options`` (None = as the model's metadata says).
+
+    Photos must be at the size of ``camera.yaml``; their maps are made at that size, or at
+    ``width`` px wide (camera resized to match, :func:`detection_camera`) if the camera is
+    wider. Every photo's header is checked when the source is made, before any work.
+    :meth:`stack` detects ``threads`` photos at once, one inference thread each
+    (:class:`~turbinefit.detect.DetectorPool`; None = one per core); :meth:`keyframe`
+    detects one photo with one detector that does not spin-wait (the tracker's solver
+    needs the cores between photos).
+    """
+
+    def __init__(self, folder: FlightFolder, model: str | os.PathLike[str] | None = None,
+                 options: DetectOptions | None = None, *, width: int = FIT_DETECT_WIDTH,
+                 threads: int | None = None) -> None:
+        self.paths = keyframe_images(folder.root, folder.timestamps)
+        for p in self.paths:  # headers only, before any work
+            check_image(p)
+        self.photo_camera = folder.camera
+        self.camera = detection_camera(folder.camera, width)
+        from turbinefit.detect import DetectOptions
+
+        self.model = model
+        self.options = options or DetectOptions()
+        self.threads = threads
+        self.description = f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+        self._detector: HeatmapDetector | None = None
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def where(self, k: int) -> Path:
+        return self.paths[k]
+
+    def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
+        img = read_image(path)
+        cam = self.photo_camera
+        if img.shape[:2] != (cam.height, cam.width):
+            raise InputError(f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
+                             f"{cam.width}x{cam.height}", path=path)
+        return det.detect(img, size=(self.camera.width, self.camera.height))
+
+    def keyframe(self, k: int) -> F32Maps:
+        if self._detector is None:
+            self._detector = self.options.detector(self.model, spinning=False)
+        return self._detect(self._detector, self.paths[k])
+
+    def stack(self, progress: bool = False) -> HeatmapStack:
+        from tqdm import tqdm
+
+        pool = self.options.pool(self.model, self.threads)
+        maps = np.empty((len(self.paths), 7, self.camera.height, self.camera.width),
+                        dtype=np.float32)
+        for k, m in enumerate(tqdm(pool.map(self._detect, self.paths), total=len(self.paths),
+                                   desc="detecting", unit="img", leave=False,
+                                   disable=None if progress else True)):
+            maps[k] = m
+        return HeatmapStack(maps)
+
+
+def open_heatmaps(folder: FlightFolder, from_images: bool | None = None,
+                  model: str | os.PathLike[str] | None = None,
+                  options: DetectOptions | None = None,
+                  threads: int | None = None) -> HeatmapSource:
+    """The heat-map source of a flight folder: :class:`PhotoHeatmaps` when ``from_images``
+    is True, or when it is None and the folder has ``images/`` but no ``heatmaps/``;
+    :class:`FileHeatmaps` otherwise."""
+    if from_images is None:
+        from_images = not has_heatmaps(folder.root) and (folder.root / IMAGE_DIR).is_dir()
+    if from_images:
+        return PhotoHeatmaps(folder, model, options, threads=threads)
+    return FileHeatmaps(folder)

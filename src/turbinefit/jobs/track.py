@@ -1,0 +1,276 @@
+"""The ``track`` job: a flight folder replayed keyframe by keyframe through the in-flight
+:class:`~turbinefit.solver.tracker.Tracker`, as a drone would feed it.
+
+Each keyframe's heat-maps come from the flight's :class:`~turbinefit.jobs.sources.
+HeatmapSource` as it arrives (read from ``heatmaps/`` or detected from its photo); the
+tracker only ever sees heat-maps. A keyframe's latency is the wall time of getting its
+heat-maps and of the tracker's update.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from turbinefit import __version__
+from turbinefit.errors import InputError
+from turbinefit.eval.metrics import Accuracy, accuracy
+from turbinefit.geometry.se3 import SE3
+from turbinefit.io.atomic import write_text_atomic
+from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
+from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
+from turbinefit.io.tum import write_tum
+from turbinefit.io.turbine_yaml import write_turbine_yaml
+from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
+from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
+from turbinefit.jobs.sources import PhotoHeatmaps, open_heatmaps
+from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams
+
+if TYPE_CHECKING:
+    from turbinefit.detect import DetectOptions
+
+
+@dataclass(frozen=True)
+class LatencyStats:
+    """Per-keyframe latency [ms]: median, 90th / 99th percentile, max, mean, and the slope
+    of a least-squares line through latency against keyframe index [ms per 1000
+    keyframes]; ``steady_slope`` is that slope after the window has filled (any growth
+    left would come from the flight's length), None for a flight no longer than it."""
+
+    median_ms: float
+    p90_ms: float
+    p99_ms: float
+    max_ms: float
+    mean_ms: float
+    slope_ms_per_1000_keyframes: float
+    steady_slope_ms_per_1000_keyframes: float | None = None
+
+    @staticmethod
+    def of(latency_ms: np.ndarray, window: int | None = None) -> LatencyStats | None:
+        """The statistics of ``latency_ms`` (None if empty) with a sliding ``window``."""
+        lat = np.asarray(latency_ms, dtype=np.float64)
+        if lat.size == 0:
+            return None
+
+        def slope(v: np.ndarray) -> float:
+            if v.size < 2:
+                return 0.0
+            return float(np.polyfit(np.arange(v.size, dtype=np.float64), v, 1)[0]) * 1000.0
+
+        steady = (slope(lat[window:]) if window is not None and lat.size > window + 1
+                  else None)
+        return LatencyStats(float(np.median(lat)), float(np.percentile(lat, 90)),
+                            float(np.percentile(lat, 99)), float(lat.max()), float(lat.mean()),
+                            slope(lat), steady)
+
+    def to_dict(self) -> dict[str, float]:
+        d = {"median_ms": self.median_ms, "p90_ms": self.p90_ms, "p99_ms": self.p99_ms,
+             "max_ms": self.max_ms, "mean_ms": self.mean_ms,
+             "slope_ms_per_1000_keyframes": self.slope_ms_per_1000_keyframes}
+        if self.steady_slope_ms_per_1000_keyframes is not None:
+            d["steady_slope_ms_per_1000_keyframes"] = self.steady_slope_ms_per_1000_keyframes
+        return d
+
+
+@dataclass
+class TrackSummary:
+    """What ``summary.json`` of a track holds (:meth:`to_dict` is its layout).
+
+    Attributes:
+        flight, num_keyframes, heatmap_size, heatmaps: as for
+            :class:`~turbinefit.jobs.fit.FitSummary`.
+        config: the tracker's options.
+        latency: statistics of the per-keyframe latency (None for no keyframes).
+        iterations_mean: mean LM iterations per update.
+        theta_prior_active_at_end: whether the start-up prior on theta still acted.
+        initial_turbine, final_turbine: the turbine before and after.
+        final_sigma: standard deviation of each turbine parameter at the end (None if the
+            information was singular).
+        initial, causal, final, final_without_back_substitution: accuracy of the initial
+            poses, of each keyframe's estimate on arrival, of the final estimates and of
+            those without moving marginalised keyframes (None without ground truth).
+    """
+
+    flight: str
+    num_keyframes: int
+    heatmap_size: tuple[int, int]
+    heatmaps: str
+    config: TrackerConfig
+    latency: LatencyStats | None
+    iterations_mean: float
+    theta_prior_active_at_end: bool
+    initial_turbine: TurbineParams
+    final_turbine: TurbineParams
+    final_sigma: dict[str, float] | None = None
+    initial: Accuracy | None = None
+    causal: Accuracy | None = None
+    final: Accuracy | None = None
+    final_without_back_substitution: Accuracy | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        turbine: dict[str, Any] = {"initial": self.initial_turbine.to_dict(),
+                                   "final": self.final_turbine.to_dict()}
+        if self.final_sigma is not None:
+            turbine["final_sigma"] = self.final_sigma
+        out: dict[str, Any] = {
+            "turbinefit_version": __version__,
+            "flight": self.flight,
+            "num_keyframes": self.num_keyframes,
+            "heatmap_size": list(self.heatmap_size),
+            "heatmaps": self.heatmaps,
+            "config": tracker_config_dict(self.config),
+            "latency": {} if self.latency is None else self.latency.to_dict(),
+            "iterations_mean": self.iterations_mean,
+            "theta_prior_active_at_end": self.theta_prior_active_at_end,
+            "turbine": turbine,
+        }
+        if (self.initial is not None and self.causal is not None and self.final is not None
+                and self.final_without_back_substitution is not None):
+            out["accuracy"] = {
+                "initial": self.initial.to_dict(), "causal": self.causal.to_dict(),
+                "final": self.final.to_dict(),
+                "final_without_back_substitution":
+                    self.final_without_back_substitution.to_dict()}
+        return out
+
+
+@dataclass
+class TrackReport:
+    """What :func:`track_folder` did.
+
+    Attributes:
+        out_dir: where the outputs were written.
+        estimates: the tracker's answer to each keyframe, in time order.
+        world_T_cam: (N,) final estimates (window at its last, earlier keyframes moved
+            with it by back-substitution).
+        turbine: the final turbine.
+        latency_ms: (N,) wall time of each keyframe (heat-maps and update) [ms].
+        summary: what ``summary.json`` holds.
+    """
+
+    out_dir: Path
+    estimates: list[TrackEstimate]
+    world_T_cam: SE3
+    turbine: TurbineParams
+    latency_ms: np.ndarray
+    summary: TrackSummary
+
+    @property
+    def causal(self) -> Accuracy | None:
+        return self.summary.causal
+
+    @property
+    def final(self) -> Accuracy | None:
+        return self.summary.final
+
+
+def track_folder(
+    flight_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    config: TrackerConfig | None = None,
+    *,
+    plots: bool = True,
+    overwrite: bool = False,
+    progress: Callable[[TrackEstimate, int], None] | None = None,
+    config_path: str | os.PathLike[str] | None = None,
+    from_images: bool | None = None,
+    model: str | os.PathLike[str] | None = None,
+    detect_options: DetectOptions | None = None,
+) -> TrackReport:
+    """Replay the flight in ``flight_dir`` keyframe by keyframe through a :class:`Tracker`.
+
+    Writes into ``out_dir`` (atomically, checked as :func:`~turbinefit.jobs.fit.fit_folder`
+    checks it): ``causal.txt`` (TUM: each keyframe's estimate when it arrived),
+    ``keyframes.txt`` and ``turbine.yaml`` (the final estimates, as ``fit`` writes them),
+    ``latency.csv`` (``timestamp,latency_ms``), ``config.yaml``, ``summary.json``
+    (:class:`TrackSummary`) and, unless ``plots=False``, ``latency.png``, ``errors.png``
+    (with ground truth) and ``scene.png``.
+
+    With photos (``images/`` and no ``heatmaps/``, or ``from_images``) each keyframe's photo
+    is read and run through the CNN (ONNX ``model`` or the shipped one, with
+    ``detect_options``) as it arrives; its latency includes detection.
+    ``progress(estimate, total)`` is called after every keyframe.
+    """
+    cfg = config or TrackerConfig()
+    flight_dir = Path(flight_dir)
+    out = Path(out_dir)
+    TRACK_OUTPUTS.check(out, flight_inputs(flight_dir, None if config_path is None
+                                           else Path(config_path)), overwrite)
+    folder = read_flight_folder(flight_dir)
+    source = open_heatmaps(folder, from_images, model, detect_options)
+    tracker = Tracker(source.camera, folder.turbine, cfg)
+    n = folder.num_keyframes
+    poses = folder.keyframes.poses
+    latency = np.empty(n)
+    for k in range(n):
+        t0 = time.perf_counter()
+        maps = source.keyframe(k)
+        try:
+            est = tracker.update(float(folder.timestamps[k]), poses[k], maps)
+        except KeyframeError as exc:
+            raise InputError(exc.reason, source.where(k)) from None
+        latency[k] = (time.perf_counter() - t0) * 1e3
+        if progress is not None:
+            progress(est, n)
+    final_poses = tracker.world_T_cam()
+    causal_poses = tracker.causal_world_T_cam()
+    turbine = tracker.turbine
+    last = tracker.estimates[-1]
+    summary = TrackSummary(
+        str(flight_dir), n, (source.camera.width, source.camera.height),
+        (f"{source.description} (as each keyframe arrives; its latency includes detection)"
+         if isinstance(source, PhotoHeatmaps) else source.description),
+        cfg, LatencyStats.of(latency, cfg.window),
+        float(np.mean([e.iterations for e in tracker.estimates])),
+        tracker.theta_prior_active, folder.turbine, turbine)
+    if last.theta_covariance is not None:
+        summary.final_sigma = dict(zip(TurbineParams.NAMES,
+                                       np.sqrt(np.diag(last.theta_covariance)).tolist(),
+                                       strict=True))
+    geometry = cfg.fit.geometry
+    gt_poses, gt_turbine = folder.gt_world_T_cam, folder.gt_turbine
+    if gt_poses is not None and gt_turbine is not None:
+        summary.initial = accuracy(poses, folder.turbine, gt_poses, gt_turbine, geometry)
+        summary.causal = accuracy(causal_poses, turbine, gt_poses, gt_turbine, geometry)
+        summary.final = accuracy(final_poses, turbine, gt_poses, gt_turbine, geometry)
+        summary.final_without_back_substitution = accuracy(
+            tracker.world_T_cam(back_substitution=False), turbine, gt_poses, gt_turbine,
+            geometry)
+    with TRACK_OUTPUTS.writing(out, overwrite) as tmp:
+        write_tum(tmp / "causal.txt", folder.timestamps, causal_poses,
+                  comment="turbinefit track: each keyframe's estimate when it arrived")
+        write_tum(tmp / "keyframes.txt", folder.timestamps, final_poses)
+        write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT)
+        rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
+                                                               strict=True))
+        write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)
+        write_text_atomic(tmp / "config.yaml", format_tracker_config(cfg), fsync=False)
+        write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
+        if plots:
+            try:
+                _track_plots(tmp, folder, final_poses, causal_poses, turbine, latency, geometry)
+            except OSError as exc:
+                raise plot_error(exc, out) from exc
+    return TrackReport(out, list(tracker.estimates), final_poses, turbine, latency, summary)
+
+
+def _track_plots(out: Path, folder: FlightFolder, final_poses: SE3, causal_poses: SE3,
+                 turbine: TurbineParams, latency: np.ndarray, geometry: TurbineGeometry) -> None:
+    from turbinefit import plots
+
+    initial = folder.keyframes.poses
+    plots.plot_latency(out / "latency.png", latency)
+    plots.plot_scene(
+        out / "scene.png", initial_poses=initial, optimised_poses=final_poses,
+        initial_turbine=folder.turbine, optimised_turbine=turbine,
+        gt_poses=folder.gt_world_T_cam, gt_turbine=folder.gt_turbine, geometry=geometry)
+    if folder.gt_world_T_cam is not None:
+        plots.plot_pose_errors(out / "errors.png", folder.timestamps, folder.gt_world_T_cam,
+                               initial=initial, optimised=final_poses, causal=causal_poses)
