@@ -75,7 +75,7 @@ from scipy.special import ndtr, ndtri
 from tqdm import tqdm
 
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.geometry.se3 import SE3
+from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
 from turbinefit.sim.trajectory import distance_to_segments, skeleton_segments
 from turbinefit.turbine.model import (
     BLADE_PERIOD,
@@ -1810,16 +1810,6 @@ def _solid_segments(turbine: TurbineParams, geometry: TurbineGeometry) -> FloatA
     return np.concatenate([segs, np.stack([p[2] - (r + rear) * shaft, p[2]])[None]])
 
 
-def _look(pos: FloatArray, yaw: float, pitch: float, roll: float) -> SE3:
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    z = np.array([cp * math.cos(yaw), cp * math.sin(yaw), sp])
-    x = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
-    y = np.cross(z, x)
-    cr, sr = math.cos(roll), math.sin(roll)
-    R = np.stack([cr * x + sr * y, -sr * x + cr * y, z], axis=-1)
-    return SE3.from_rotation_translation(R, pos)
-
-
 def sample_training_view(
     rng: np.random.Generator,
     turbine: TurbineParams,
@@ -1888,4 +1878,4 @@ def sample_training_view(
     pitch = math.atan2(v[2], math.hypot(v[0], v[1])) + spread * half_v * rng.uniform(-1.0, 1.0)
     pitch = float(np.clip(pitch, -math.radians(60.0), math.radians(60.0)))
     roll = float(np.clip(rng.normal(0.0, math.radians(2.0)), -math.radians(5.0), math.radians(5.0)))
-    return _look(pos, yaw, pitch, roll)
+    return world_T_cam_from_angles(pos, yaw, pitch, roll)
