@@ -82,7 +82,7 @@ from turbinefit.sim.dataset import (
     render_sample,
     sample_view,
 )
-from turbinefit.sim.images import Scene, _blade_profile, _Turbine, flight_scene, sample_scene
+from turbinefit.sim.images import Scene, TurbineSolid, blade_profile, flight_scene, sample_scene
 from turbinefit.sim.scenario import SimConfig
 from turbinefit.turbine.model import TurbineGeometry
 
@@ -123,8 +123,8 @@ def _rings(centres: np.ndarray, ax: np.ndarray, ay: np.ndarray, rx: np.ndarray,
 def turbine_meshes(theta: np.ndarray, geometry: TurbineGeometry, scene: Scene,
                    material: str) -> list[Mesh]:
     """Tower, nacelle, spinner and blades of one turbine as meshes (world metres), with
-    the proportions of turbinefit's renderer (:class:`turbinefit.sim.images._Turbine`)."""
-    t = _Turbine(theta, geometry, scene)
+    the proportions of turbinefit's renderer (:class:`turbinefit.sim.images.TurbineSolid`)."""
+    t = TurbineSolid(theta, geometry, scene)
     meshes: list[Mesh] = []
     top = np.array([t.base[0], t.base[1], t.tower_top_z])
     ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
@@ -158,7 +158,7 @@ def turbine_meshes(theta: np.ndarray, geometry: TurbineGeometry, scene: Scene,
     meshes.append({"vertices": v, "faces": f, "material": material, "smooth": True})
     # blades: elliptic sections of the renderer's chord profile, twisted towards the root
     u = 1.0 - (1.0 - np.linspace(0.0, 1.0, 28)) ** 1.3
-    half_chord, half_thick = _blade_profile(u.astype(np.float32), t.b)
+    half_chord, half_thick = blade_profile(u.astype(np.float32), t.b)
     for tip in t.tips:
         e = (tip - t.hub) / np.linalg.norm(tip - t.hub)
         chord0 = np.cross(t.shaft, e)

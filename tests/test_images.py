@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.geometry.se3 import SE3
+from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
 from turbinefit.sim.images import (
     NO_EFFECTS,
     Scene,
-    _look,
     points_in_sight,
     render_flight_images,
     render_image,
@@ -34,7 +33,7 @@ TURBINE = PRESETS["nrel5mw"]
 
 def _pose(pos: tuple[float, float, float], yaw: float, pitch: float, roll: float = 0.0) -> SE3:
     """world_T_cam of an OpenCV camera at ``pos`` looking along yaw/pitch [rad]."""
-    return _look(np.asarray(pos, dtype=float), yaw, pitch, roll)
+    return world_T_cam_from_angles(np.asarray(pos, dtype=float), yaw, pitch, roll)
 
 
 def _look_at(eye: np.ndarray, target: np.ndarray) -> SE3:

@@ -286,3 +286,30 @@ def pose_errors(estimate: SE3, reference: SE3) -> tuple[FloatArray, FloatArray]:
     dq = quat_multiply(quat_conjugate(reference.wxyz), estimate.wxyz)
     dang = np.linalg.norm(quat_log(dq), axis=-1)
     return dpos, dang
+
+
+def world_T_cam_from_angles(position: ArrayLike, yaw: ArrayLike, pitch: ArrayLike,
+                            roll: ArrayLike) -> SE3:
+    """``world_T_cam`` of cameras at ``position`` (..., 3) [m] looking along azimuth ``yaw``
+    and elevation ``pitch``, rolled by ``roll`` about the view (all [rad], broadcast over the
+    leading dims).
+
+    World frame: z up; ``yaw`` is the view direction's azimuth from the world x axis,
+    counter-clockwise seen from above; ``pitch`` its elevation above the horizontal
+    (positive looks up). Camera frame: OpenCV, z along the view; before the roll, x is
+    horizontal (to the right of the view) and y = z x x points down (as far as the pitch
+    lets it); ``roll`` then turns x towards y about z. Poses at the same angles are
+    bit-identical whether passed one by one or batched.
+    """
+    yaw_, pitch_ = np.broadcast_arrays(np.asarray(yaw, dtype=np.float64),
+                                       np.asarray(pitch, dtype=np.float64))
+    roll_ = np.asarray(roll, dtype=np.float64)
+    cp, sp = np.cos(pitch_), np.sin(pitch_)
+    cy, sy = np.cos(yaw_), np.sin(yaw_)
+    z = np.stack([cp * cy, cp * sy, sp], -1)
+    x = np.stack([sy, -cy, np.zeros_like(sy)], -1)
+    y = np.cross(z, x)
+    cr, sr = np.cos(roll_)[..., None], np.sin(roll_)[..., None]
+    x_r, y_r, z = np.broadcast_arrays(cr * x + sr * y, -sr * x + cr * y, z)
+    R = np.stack([x_r, y_r, z], axis=-1)
+    return SE3.from_rotation_translation(R, position)

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
-from turbinefit.geometry.se3 import SE3
+from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
 from turbinefit.turbine.model import (
     LINES,
     PAPER_GEOMETRY,
@@ -458,20 +458,12 @@ def _sample_path(bld: _Builder, n_keyframes: int, rng: np.random.Generator, segs
 
 def _look(pos: FloatArray, view: FloatArray, jitter: FloatArray, max_pitch_deg: float) -> SE3:
     """world_T_cam of cameras at ``pos`` looking along ``view`` with (yaw, pitch, roll)
-    offsets ``jitter`` [rad]; camera x horizontal (before roll), y pointing down."""
+    offsets ``jitter`` [rad], pitch clipped to +-``max_pitch_deg``
+    (:func:`~turbinefit.geometry.se3.world_T_cam_from_angles`)."""
     yaw = np.arctan2(view[:, 1], view[:, 0]) + jitter[:, 0]
     lim = math.radians(max_pitch_deg)
     pitch = np.clip(np.arcsin(np.clip(view[:, 2], -1.0, 1.0)) + jitter[:, 1], -lim, lim)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    z = np.stack([cp * cy, cp * sy, sp], -1)
-    x = np.stack([sy, -cy, np.zeros_like(sy)], -1)
-    y = np.cross(z, x)
-    cr, sr = np.cos(jitter[:, 2])[:, None], np.sin(jitter[:, 2])[:, None]
-    x_r = cr * x + sr * y
-    y_r = -sr * x + cr * y
-    R = np.stack([x_r, y_r, z], axis=-1)
-    return SE3.from_rotation_translation(R, pos)
+    return world_T_cam_from_angles(pos, yaw, pitch, jitter[:, 2])
 
 
 def inspection_trajectory(

@@ -1,0 +1,268 @@
+"""Ray casting of a turbine's parts into a frame: tapered, twisted tubes (tower, blades)
+through each ray's closest approach to the axis, the nacelle box by slabs, the spinner
+ellipsoid exactly; anti-aliased coverage, shading and depth-tested compositing, far to near.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from turbinefit.sim.images.arrays import FloatArray, blend, column, dot3, matmul3, take_cols
+from turbinefit.sim.images.frame import NEAR, Frame
+from turbinefit.sim.images.scene import Scene
+from turbinefit.sim.images.turbine import TurbineSolid, blade_profile
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def _perp(e: FloatArray) -> FloatArray:
+    """A unit vector perpendicular to unit e."""
+    a = np.array([0.0, 0.0, 1.0]) if abs(e[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    return _unit(np.cross(e, a))
+
+
+class Painter:
+    """Ray casts turbine parts into a frame."""
+
+    def __init__(self, fr: Frame, scene: Scene) -> None:
+        self.fr = fr
+        self.sc = scene
+
+    def tube(self, a: FloatArray, e: FloatArray, L: float, kind: str, tb: TurbineSolid,
+             c0: FloatArray) -> None:
+        """A tapered tube round the axis a + s e, s in [0, L] (tower or blade), with an
+        elliptic cross-section whose chord is along c0 (turned by the twist for blades).
+
+        Each ray is intersected through its closest approach to the axis: the lateral
+        distance x, compared with the silhouette half-width of the cross-section seen along
+        the ray, gives the coverage (anti-aliased over one pixel); the entry point on the
+        cross-section gives the normal and the depth.
+        """
+        fr = self.fr
+        if L <= 1e-6:
+            return
+        if kind == "tower":
+            radius: float | FloatArray = tb.r0
+        else:  # per eighth of the span (tip pieces get much smaller boxes)
+            uu = np.linspace(0.0, 1.0, 33, dtype=np.float32)
+            prof = np.maximum(*blade_profile(uu, tb.b))
+            radius = 1.05 * np.array([prof[4 * k:4 * k + 5].max() for k in range(8)])
+        idx = fr.segment_pixels(a, a + L * e, radius)
+        if idx is None:
+            return
+        D = take_cols(fr.D, idx)
+        w = fr.o - a
+        n0 = np.cross(e, c0)
+        M = np.stack([e, w, np.cross(w, e), c0, n0]).astype(np.float32)
+        P = matmul3(M, D)
+        b_, dw, trip, Dc0, Dn0 = P
+        ew = np.float32(w @ e)
+        den = np.maximum(1.0 - b_ * b_, 1e-6)
+        sq = np.sqrt(den)
+        isq = 1.0 / sq
+        s_raw = ew + (b_ * ew - dw) / den * b_  # axis coordinate of the closest approach
+        s = np.clip(s_raw, 0.0, np.float32(L))
+        t = s * b_ - dw  # ray distance of the point nearest the axis point s
+        x = trip * isq  # signed lateral distance of the ray from the axis
+        u = s * np.float32(1.0 / L)
+        if kind == "tower":
+            A = np.float32(tb.r0) + np.float32(tb.r1 - tb.r0) * u
+            B = A
+            cb = np.ones_like(u)
+            sb = np.zeros_like(u)
+        else:
+            A, B = blade_profile(u, tb.b)
+            beta = np.float32(self.sc.blade_pitch) + np.float32(math.radians(14.0)) * np.clip(
+                (1.0 - u) * np.float32(1 / 0.8), 0.0, 1.0) ** 1.5
+            cb, sb = np.cos(beta), np.sin(beta)
+        # view direction projected on the cross-section, in (chord, thickness) coordinates
+        mc = (cb * Dc0 + sb * Dn0) * isq
+        mn = (cb * Dn0 - sb * Dc0) * isq
+        hw = np.sqrt((mc * B) ** 2 + (mn * A) ** 2)  # silhouette half-width
+        pix = np.maximum(t, NEAR) * np.float32(fr.inv_f)  # metres per pixel there
+        # flat ends (tower base and top, blade root) are cut at the hit point below; the
+        # blade tip is round
+        ds = np.zeros_like(x) if kind == "tower" else np.maximum(s_raw - np.float32(L), 0.0) * sq
+        cov = np.ones_like(x)
+        dist = np.sqrt(x * x + ds * ds)
+        # parts thinner than a pixel are drawn one pixel wide and faint, not broken up
+        hw_eff = np.maximum(hw, 0.6 * pix)
+        cov = cov * np.clip(0.5 + (hw_eff - dist) / pix, 0.0, 1.0) * (hw / hw_eff)
+        cov = cov * (t > NEAR)
+        sel = np.flatnonzero(cov > 0.003)
+        if sel.size == 0:
+            return
+        idx = idx[sel]
+        D = take_cols(D, sel)
+        x, t, u, A, B, mc, mn, cb, sb, sq, cov, Dc0, Dn0, hw, b_ = (
+            v[sel] for v in (x, t, u, A, B, mc, mn, cb, sb, sq, cov, Dc0, Dn0, hw, b_))
+        # entry point (X, Y) on the elliptic cross-section, and its normal
+        xc = np.clip(x, -0.97 * hw, 0.97 * hw)
+        iA2 = 1.0 / (A * A)
+        iB2 = 1.0 / (B * B)
+        al = mc * mc * iA2 + mn * mn * iB2
+        be = xc * mc * mn * (iB2 - iA2)
+        ga = xc * xc * (mn * mn * iA2 + mc * mc * iB2) - 1.0
+        tau = (-be - np.sqrt(np.maximum(be * be - al * ga, 0.0))) / al
+        X = tau * mc - xc * mn
+        Y = tau * mn + xc * mc
+        nX = X * iA2
+        nY = Y * iB2
+        inv = 1.0 / np.maximum(np.sqrt(nX * nX + nY * nY), 1e-12)
+        nX *= inv
+        nY *= inv
+        k0 = nX * cb - nY * sb  # normal = k0 c0 + k1 n0
+        k1 = nX * sb + nY * cb
+        l = fr.sun
+        nl = k0 * np.float32(c0 @ l) + k1 * np.float32(n0 @ l)
+        nz = k0 * np.float32(c0[2]) + k1 * np.float32(n0[2])
+        nD = k0 * Dc0 + k1 * Dn0
+        depth = t + np.maximum(tau / sq, -3.0 * np.maximum(A, B))
+        albedo = np.repeat(column(self.sc.paint), idx.size, axis=1)
+        # flat ends: where the ray enters the (infinite) tube beyond an end, it misses it
+        s_hit = ew + depth * b_  # axis coordinate of the hit point
+        pix = np.maximum(depth, NEAR) * np.float32(fr.inv_f)
+        cov = cov * np.clip(0.5 + s_hit * sq / pix, 0.0, 1.0)
+        if kind == "tower":
+            cov = cov * np.clip(0.5 + (np.float32(L) - s_hit) * sq / pix, 0.0, 1.0)
+            z = np.float32(fr.o[2]) + depth * D[2]
+            hb, *bc = self.sc.base_band
+            if hb > 0:
+                m = np.clip((np.float32(hb) - z) / (depth * np.float32(fr.inv_f)) + 0.5, 0, 1)
+                albedo = blend(albedo, column(tuple(bc)), m)  # type: ignore[arg-type]
+            if self.sc.door:
+                low = np.flatnonzero(z < 3.0)
+                if low.size:
+                    ang = np.arctan2(Y[low], X[low])  # round the axis, in the (c0, n0) frame
+                    da = np.abs((ang - np.float32(tb.door_az) + np.pi) % np.float32(2 * np.pi)
+                                - np.pi)
+                    dm = low[(da * A[low] < 0.55) & (z[low] > 0.15) & (z[low] < 2.4)]
+                    albedo[:, dm] = column((0.35, 0.36, 0.37))
+        elif self.sc.tip_bands:
+            if self.sc.tip_bands == 1:
+                band = u > 0.9
+            else:
+                band = ((u > 0.8) & (u < 0.87)) | (u > 0.93)
+            albedo[:, band] = column(self.sc.tip_colour)
+        col = fr.shade(albedo, nl, nz, nD, dot3(fr.sun_f, D), 0.3)
+        fr.composite(idx, depth, cov, fr.hazed(col, depth))
+
+    def box(self, tb: TurbineSolid) -> None:
+        """The nacelle: a box (slab test) with rounded (superellipse) shading; coverage from
+        its inside margin divided by the margin's screen gradient (~ signed pixel distance)."""
+        fr = self.fr
+        E = np.stack([tb.shaft, tb.side, tb.up])  # rows: local axes
+        hx = tb.nac_half
+        oc = E @ (fr.o - tb.nac_centre)
+        if np.all(np.abs(oc) < hx + 0.2):
+            return  # the camera is inside the nacelle: draw nothing rather than a wall
+        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        bb = fr.bbox(tb.nac_centre + (signs * hx) @ E, 0.0)
+        if bb is None:
+            return
+        i0, i1, j0, j1 = bb
+        i0, i1 = max(0, i0 - 1), min(fr.H, i1 + 1)
+        j0, j1 = max(0, j0 - 1), min(fr.W, j1 + 1)
+        hh, ww = i1 - i0, j1 - j0
+        if hh < 2 or ww < 2:
+            return
+        idx = fr.box_indices((i0, i1, j0, j1))
+        D = take_cols(fr.D, idx)
+        dl = matmul3(E, D)
+        dl = np.where(np.abs(dl) < 1e-7, np.float32(1e-7), dl)
+        inv = 1.0 / dl
+        o32 = oc.astype(np.float32)[:, None]
+        h32 = hx.astype(np.float32)[:, None]
+        t1 = (-h32 - o32) * inv
+        t2 = (h32 - o32) * inv
+        tn = np.minimum(t1, t2).max(axis=0)
+        tf = np.maximum(t1, t2).min(axis=0)
+        g = (tf - tn).reshape(hh, ww)
+        gy, gx = np.gradient(g)
+        sd = g / np.maximum(np.sqrt(gx * gx + gy * gy), 1e-6)
+        cov = np.clip(0.5 + sd.ravel(), 0.0, 1.0) * (tn > NEAR)
+        sel = np.flatnonzero(cov > 0.003)
+        if sel.size == 0:
+            return
+        idx, tn, cov = idx[sel], tn[sel], cov[sel]
+        D, dl = take_cols(D, sel), take_cols(dl, sel)
+        P = o32 + tn[None] * dl
+        q = np.clip(np.abs(P) / h32, 0.0, 1.0)
+        q2 = q * q
+        q4 = q2 * q2
+        nloc = np.sign(P) * (q4 * q2 * q) / h32  # superellipse gradient: rounded edges
+        nloc /= np.maximum(np.sqrt((nloc * nloc).sum(axis=0)), 1e-12)[None]
+        n = matmul3(E.T, nloc)
+        albedo = column(self.sc.paint) * np.float32(0.97)
+        col = fr.shade(albedo, dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0), dot3(fr.sun_f, D),
+                       0.3)
+        fr.composite(idx, tn, cov, fr.hazed(col, tn))
+
+    def spinner(self, tb: TurbineSolid) -> None:
+        """The spinner: an ellipsoid round the hub (exact intersection)."""
+        fr = self.fr
+        E = np.stack([tb.shaft, tb.side, tb.up])
+        radii = np.array([tb.spin_len, tb.spin_r, tb.spin_r])
+        bb = fr.bbox(tb.spin_centre[None], max(tb.spin_len, tb.spin_r))
+        if bb is None:
+            return
+        idx = fr.box_indices(bb)
+        D = take_cols(fr.D, idx)
+        S = E / radii[:, None]  # world -> unit-sphere coordinates
+        op = (S @ (fr.o - tb.spin_centre)).astype(np.float32)
+        Cq = np.float32(op @ op - 1.0)
+        if Cq <= 0:
+            return
+        dp = matmul3(S, D)
+        Aq = (dp * dp).sum(axis=0)
+        Bq = dot3(op, dp)
+        rho2 = (Cq + 1.0) - Bq * Bq / Aq  # squared distance of the ray from the centre
+        t = (-Bq - np.sqrt(np.maximum(Bq * Bq - Aq * Cq, 0.0))) / Aq
+        pix = np.maximum(t, NEAR) * np.float32(fr.inv_f)
+        cov = np.clip(0.5 + (1.0 - np.sqrt(np.maximum(rho2, 0.0))) * np.float32(tb.spin_r) / pix,
+                      0.0, 1.0) * (t > NEAR)
+        sel = np.flatnonzero(cov > 0.003)
+        if sel.size == 0:
+            return
+        idx, t, cov = idx[sel], t[sel], cov[sel]
+        D, dp = take_cols(D, sel), take_cols(dp, sel)
+        P = op[:, None] + t[None] * dp
+        n = matmul3(E.T, P / radii.astype(np.float32)[:, None])
+        n /= np.maximum(np.sqrt((n * n).sum(axis=0)), 1e-12)[None]
+        col = fr.shade(column(self.sc.paint), dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0),
+                       dot3(fr.sun_f, D), 0.35)
+        fr.composite(idx, t, cov, fr.hazed(col, t))
+
+    def turbine(self, tb: TurbineSolid) -> None:
+        """All parts, far to near (so that anti-aliased edges blend over what is behind)."""
+        fr = self.fr
+        top = np.array([tb.base[0], tb.base[1], tb.tower_top_z])
+        parts: list[tuple[float, int, int]] = [
+            (float(np.linalg.norm(0.5 * (tb.base + top) - fr.o)), 0, 0),
+            (float(np.linalg.norm(tb.nac_centre - fr.o)), 1, 0),
+            (float(np.linalg.norm(tb.spin_centre - fr.o)) - 0.5 * tb.spin_len, 2, 0),
+        ]
+        for i, tip in enumerate(tb.tips):
+            parts.append((float(np.linalg.norm(0.5 * (tb.hub + tip) - fr.o)), 3, i))
+        for _, kind, i in sorted(parts, key=lambda p: -p[0]):
+            if kind == 0:
+                self.tube(tb.base, np.array([0.0, 0.0, 1.0]), float(top[2] - tb.base[2]),
+                          "tower", tb, np.array([1.0, 0.0, 0.0]))
+            elif kind == 1:
+                self.box(tb)
+            elif kind == 2:
+                self.spinner(tb)
+            else:
+                e = tb.tips[i] - tb.hub
+                L = float(np.linalg.norm(e))
+                if L < 1e-6:
+                    continue
+                e = e / L
+                c0 = np.cross(tb.shaft, e)  # chord at zero pitch: in the rotor plane
+                nc = float(np.linalg.norm(c0))
+                c0 = c0 / nc if nc > 1e-9 else _perp(e)
+                self.tube(tb.hub, e, L, "blade", tb, c0)
