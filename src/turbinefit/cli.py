@@ -67,7 +67,7 @@ def _positive_float(text: str) -> float:
 
 
 def _tip_shift(text: str) -> float:
-    from turbinefit.detect import TIP_SHIFT_TAPER_PX, valid_tip_shift
+    from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, valid_tip_shift
 
     v = _float(text)
     if not valid_tip_shift(v):
