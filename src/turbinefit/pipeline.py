@@ -32,7 +32,6 @@ from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import atomic_output_dir, check_output_dir, read_text, write_text_atomic
-from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
 from turbinefit.io.flight_folder import (
     HEATMAP_DIR,
     IMAGE_DIR,
@@ -44,6 +43,7 @@ from turbinefit.io.flight_folder import (
 )
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
+from turbinefit.io.yaml_files import FLOAT_TEXT, safe_load_strict
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord

@@ -76,13 +76,14 @@ from tqdm import tqdm
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
-from turbinefit.sim.trajectory import distance_to_segments, skeleton_segments
+from turbinefit.sim.trajectory import distance_to_segments
 from turbinefit.turbine.model import (
     BLADE_PERIOD,
     PAPER_GEOMETRY,
     TurbineGeometry,
     TurbineParams,
     model_points,
+    skeleton_segments,
 )
 
 FloatArray = NDArray[np.float64]
