@@ -7,7 +7,7 @@
 * :mod:`turbinefit.heatmaps.model_info` - a heat-map model's settings (its metadata);
 * :mod:`turbinefit.heatmaps.resize` - resizing maps.
 
-The package imports only NumPy, SciPy and the geometry / turbine core.
+The package imports only NumPy and the turbine model (and Pillow when maps are resized).
 """
 
 from turbinefit.heatmaps.channels import CHANNEL_NAMES as CHANNEL_NAMES
