@@ -4,7 +4,7 @@
 :class:`~turbinefit.train.net.HeatmapNet` with AdamW and a one-cycle learning rate,
 evaluates on held-out renders after every epoch, checkpoints after every epoch (atomically;
 an interrupted run resumes from its last checkpoint), calibrates the detection threshold
-and exports ONNX.
+and exports ONNX (:mod:`turbinefit.train.export`).
 
 Output folder::
 
