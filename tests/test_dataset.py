@@ -11,6 +11,7 @@ import pytest
 
 from turbinefit.errors import InputError
 from turbinefit.eval.detection import peak
+from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 from turbinefit.sim.dataset import (
     DATA_VERSION,
     DatasetSpec,
@@ -19,7 +20,6 @@ from turbinefit.sim.dataset import (
     render_sample,
     sample_view,
 )
-from turbinefit.sim.render import render_keypoint_heatmaps
 
 
 def test_samples_are_deterministic_and_independent_of_size() -> None:

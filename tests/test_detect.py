@@ -13,17 +13,16 @@ import pytest
 from turbinefit.cli import main
 from turbinefit.detect import (
     TIP,
-    TIP_SHIFT_TAPER_PX,
     ZOOM_MAX,
     DetectOptions,
     DetectorPool,
     HeatmapDetector,
-    ModelInfo,
     default_model_path,
     model_input_size,
     shift_tips,
 )
 from turbinefit.eval.detection import DetectionStats, peak
+from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo
 from turbinefit.io.images import read_image, write_png
 from turbinefit.sim.dataset import DatasetSpec, render_sample
 
@@ -102,7 +101,7 @@ def test_maps_are_resized_as_pillow_resizes_them(detector: HeatmapDetector,
                                                 samples: list) -> None:
     """Enlarging on onnxruntime (the shipped resize graph) gives Pillow's bilinear maps;
     shrinking (a photo narrower than the heat-maps) and mixed sizes use Pillow itself."""
-    from turbinefit.io.images import resize_maps
+    from turbinefit.heatmaps.resize import resize_maps
 
     small = detector.detect_small(samples[1].image)
     for w, h in ((320, 240), (640, 480), (401, 133), (100, 75), (200, 90)):
@@ -116,7 +115,7 @@ def test_maps_are_resized_as_pillow_resizes_them(detector: HeatmapDetector,
 
 
 def test_shift_tips_moves_each_blob_along_its_blade() -> None:
-    from turbinefit.sim.render import render_keypoint_heatmaps
+    from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 
     hub = np.array([60.0, 50.0])
     dirs = np.array([[0.0, -1.0], [0.8, 0.6], [-0.6, 0.8]])

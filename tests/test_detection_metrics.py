@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from turbinefit.eval.detection import DetectionStats, peak
-from turbinefit.sim.render import render_keypoint_heatmaps
+from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 
 
 def _maps(uv: np.ndarray, lab: np.ndarray) -> np.ndarray:

@@ -11,10 +11,10 @@ import pytest
 
 from turbinefit.cli import main
 from turbinefit.eval.detection import InstanceStats
+from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints
 from turbinefit.io.images import write_png
 from turbinefit.sim.dataset import DatasetSpec, render_sample
-from turbinefit.sim.render import render_keypoint_heatmaps
 
 #: Two upright turbines side by side (base, tower top, hub, three tips) [px].
 _A = np.array([[20, 55], [20, 20], [23, 20], [23, 8], [14, 25], [31, 25]], float)

@@ -9,12 +9,12 @@ import pytest
 from PIL import Image
 
 from turbinefit.errors import InputError
+from turbinefit.heatmaps.resize import resize_maps
 from turbinefit.io.images import (
     check_image,
     list_images,
     read_image,
     resize_image,
-    resize_maps,
     write_png,
 )
 

@@ -21,9 +21,9 @@ from turbinefit.sim.images import (
     sample_scene,
     sample_training_view,
 )
-from turbinefit.sim.trajectory import distance_to_segments, skeleton_segments
+from turbinefit.sim.trajectory import distance_to_segments
 from turbinefit.sim.turbines import PRESETS, REALISTIC_GEOMETRY, sample_turbine
-from turbinefit.turbine.model import TurbineParams, model_points
+from turbinefit.turbine.model import TurbineParams, model_points, skeleton_segments
 
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")  # no NaN/inf on the way
 

@@ -28,7 +28,7 @@ from turbinefit.sim import (
     simulate_flight,
 )
 from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
-from turbinefit.sim.trajectory import PHASES, distance_to_segments, skeleton_segments
+from turbinefit.sim.trajectory import PHASES, distance_to_segments
 from turbinefit.sim.turbines import REALISTIC_GEOMETRY, neighbour_turbine
 from turbinefit.turbine.model import (
     LINES,
@@ -38,6 +38,7 @@ from turbinefit.turbine.model import (
     TurbineParams,
     model_points,
     param_errors,
+    skeleton_segments,
 )
 
 CAMERA = PinholeCamera(320, 240, 228.5, 228.5, 159.5, 119.5)

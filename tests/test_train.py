@@ -16,11 +16,13 @@ torch = pytest.importorskip("torch")
 pytest.importorskip("onnx")
 
 from turbinefit.cli import main  # noqa: E402
-from turbinefit.detect import HeatmapDetector, ModelInfo  # noqa: E402
+from turbinefit.detect import HeatmapDetector  # noqa: E402
 from turbinefit.errors import InputError  # noqa: E402
+from turbinefit.heatmaps.model_info import ModelInfo  # noqa: E402
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints  # noqa: E402
 from turbinefit.io.images import read_image, resize_image, write_png  # noqa: E402
 from turbinefit.sim.dataset import DatasetSpec, build_dataset, render_sample  # noqa: E402
+from turbinefit.train.export import export_onnx  # noqa: E402
 from turbinefit.train.labels import labelled_sample  # noqa: E402
 from turbinefit.train.net import (  # noqa: E402
     HeatmapNet,
@@ -35,7 +37,6 @@ from turbinefit.train.trainer import (  # noqa: E402
     TrainConfig,
     _jitter,
     evaluate,
-    export_onnx,
     forward,
     heatmap_loss,
 )
@@ -175,7 +176,7 @@ def test_shipped_resize_graph_is_the_exported_one(tmp_path: Path) -> None:
     """The package's resize graph is what export_resize_onnx writes (regenerate it with
     that function if this fails)."""
     from turbinefit.detect import RESIZE_MODEL, default_model_path
-    from turbinefit.train.trainer import export_resize_onnx
+    from turbinefit.train.export import export_resize_onnx
 
     fresh = export_resize_onnx(tmp_path / RESIZE_MODEL)
     shipped = default_model_path().with_name(RESIZE_MODEL)
@@ -267,7 +268,7 @@ def test_evaluate_calibrates_the_tip_shift_in_input_pixels() -> None:
     """A stand-in net of input scale 2 whose tip blobs sit 3 heat-map px inboard: the
     calibrated shift is +6 px of its input (what ModelInfo.tip_shift_px holds), though the
     other distances stay in heat-map pixels."""
-    from turbinefit.sim.render import render_keypoint_heatmaps
+    from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 
     uv = np.array([[80, 100], [80, 40], [84, 40], [84, 26], [72, 47], [96, 47]], float)
     moved = uv.copy()
@@ -375,7 +376,7 @@ def test_train_lifts_160_px_weights_to_320_px(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """--init weights of a 160-px net with --input-scale 2 start a 320-px net; weights of
     a 320-px net cannot start a 160-px one (one line, exit 2, nothing written)."""
-    from turbinefit.train.trainer import save_npz
+    from turbinefit.train.export import save_npz
 
     save_npz(HeatmapNet(input_scale=1), tmp_path / "old.npz")
     out = tmp_path / "lifted"
@@ -404,7 +405,7 @@ def _one_step_args(tmp_path: Path) -> list[str]:
 def test_train_widens_init_weights(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """--widths wider than the --init weights' starts a wider net from them; narrower ones
     and malformed widths are one clear error each (exit 2, nothing written)."""
-    from turbinefit.train.trainer import load_npz, save_npz
+    from turbinefit.train.export import load_npz, save_npz
 
     save_npz(HeatmapNet(input_scale=2), tmp_path / "narrow.npz")
     common = _one_step_args(tmp_path)
@@ -437,7 +438,7 @@ def test_train_adds_a_fine_branch(tmp_path: Path, capsys: pytest.CaptureFixture[
     """--fine on --init weights without a branch adds one (the exported model runs and
     says so); asking those weights for another branch width, or for none, is one clear
     error (exit 2, nothing written)."""
-    from turbinefit.train.trainer import load_npz, save_npz
+    from turbinefit.train.export import load_npz, save_npz
 
     save_npz(HeatmapNet(input_scale=2), tmp_path / "plain.npz")
     common = _one_step_args(tmp_path)

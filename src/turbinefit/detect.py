@@ -45,10 +45,10 @@ faster for many photos):
 5. the padding is cut off and the maps are resized back to the photo's own size
    (bilinear, pixel centres aligned), float32 (7, H, W). Enlarging runs on onnxruntime
    (a one-node graph shipped as :data:`RESIZE_MODEL`, written by
-   :func:`turbinefit.train.trainer.export_resize_onnx`: the same filter as Pillow's, on
+   :func:`turbinefit.train.export.export_resize_onnx`: the same filter as Pillow's, on
    all cores, a tenth of the time per photo at 320 x 240); shrinking (photos narrower
    than the heat-maps) uses Pillow's antialiased filter
-   (:func:`turbinefit.io.images.resize_maps`).
+   (:func:`turbinefit.heatmaps.resize.resize_maps`).
 
 So a heat-map pixel ``[c, i, j]`` is photo pixel ``u = j, v = i`` whatever the size; blobs
 and ridges are ``sigma_px`` (metadata, 3 for the shipped model) wide at the input width,
@@ -57,7 +57,8 @@ i.e. ``sigma_px * W / input_width`` in the photo.
 Model files: ONNX with one input ``(batch, 3, height, width)`` float32 RGB in [0, 1] and one
 output ``(batch, 7, height / output_scale, width / output_scale)`` float32 in [0, 1],
 height and width dynamic; turbinefit writes its settings into the ONNX metadata
-(``turbinefit.*`` keys, see :class:`ModelInfo`; a model without ``output_scale`` has 1).
+(``turbinefit.*`` keys, see :class:`turbinefit.heatmaps.model_info.ModelInfo`; a model
+without ``output_scale`` has 1).
 A file that is not such a model is an :class:`~turbinefit.errors.InputError`.
 """
 
@@ -80,8 +81,10 @@ from scipy import ndimage
 
 from turbinefit.errors import InputError
 from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
+from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo, valid_tip_shift
+from turbinefit.heatmaps.resize import resize_maps
 from turbinefit.io.atomic import StrPath
-from turbinefit.io.images import resize_image, resize_maps
+from turbinefit.io.images import resize_image
 
 if TYPE_CHECKING:
     import onnxruntime as ort
@@ -94,15 +97,8 @@ R = TypeVar("R")
 DEFAULT_MODEL = "heatmap_cnn.onnx"
 #: File name of the bilinear resize graph (heat-maps to photo size) in the same folder.
 RESIZE_MODEL = "resize_maps.onnx"
-#: Oldest and newest ONNX opsets turbinefit's models are exported with / accepted at.
-MIN_OPSET, MAX_OPSET = 13, 21
 
 HUB, TIP = CHANNEL_NAMES.index("point_hub"), CHANNEL_NAMES.index("point_blade_tip")
-
-#: Radius [px at the model's input width] around the hub within which :func:`shift_tips`
-#: tapers the tip shift to zero (tips that close to the hub are of far, tiny turbines,
-#: where the net's blobs of hub and tips merge).
-TIP_SHIFT_TAPER_PX = 20.0
 
 #: Test-time zoom (step 4 of the module docstring): a photo is zoomed when the box of its
 #: heat-map pixels above the model's threshold, widened by ``ZOOM_MARGIN_PX`` [px at the
@@ -110,11 +106,6 @@ TIP_SHIFT_TAPER_PX = 20.0
 #: enlargement is the largest that fits, at most ``ZOOM_MAX``.
 ZOOM_MIN, ZOOM_MAX, ZOOM_MARGIN_PX = 1.4, 2.0, 8.0
 
-
-def valid_tip_shift(px: float) -> bool:
-    """Whether ``px`` can be a tip shift: finite and within the taper radius, where
-    :func:`shift_tips` stays one-to-one."""
-    return math.isfinite(px) and abs(px) < TIP_SHIFT_TAPER_PX
 
 #: Overlay colour (RGB) of each channel.
 CHANNEL_COLOURS = np.array([
@@ -126,86 +117,6 @@ CHANNEL_COLOURS = np.array([
     (0, 255, 60),     # line_nacelle: green
     (60, 110, 255),   # line_blade: blue
 ], dtype=np.float32)
-
-
-@dataclass(frozen=True)
-class ModelInfo:
-    """A heat-map model's settings (ONNX metadata ``turbinefit.<field>``).
-
-    Attributes:
-        input_width: width [px] photos are resized to.
-        input_height: height [px] of a 4:3 photo at that width (for reference).
-        stride: the padded input's sides are multiples of it.
-        output_scale: the heat-maps are this many times smaller than the input (1 or 2).
-        sigma_px: blob / ridge standard deviation of the training targets [px at the
-            input width].
-        threshold: peak value above which a point channel (base, tower top, hub) counts
-            as a detection (calibrated on held-out renders: false peaks where the point is
-            out of view in at most 5 % of them).
-        tip_threshold: the same for local maxima of the blade-tip channel (calibrated for
-            the best F1 of tip recall and precision within 5 px).
-        flip: detect on the photo and its mirror image and average the maps (the
-            thresholds were calibrated so); False for models written before this field.
-        tip_shift_px: distance [px at the input width] the tip channel is moved outward
-            from the detected hub (:func:`shift_tips`; calibrated on held-out renders:
-            minus the mean offset of the net's tip peaks along the blade); 0 (no shift)
-            for models written before this field.
-        zoom: find the blade tips of small turbines again in a second pass of the net
-            on an enlarged crop (test-time zoom, step 4 of the module docstring); False
-            for models written before this field.
-        opset: ONNX opset of the file.
-        description: how it was trained.
-    """
-
-    input_width: int = 160
-    input_height: int = 120
-    stride: int = 16
-    output_scale: int = 1
-    sigma_px: float = 1.5
-    threshold: float = 0.3
-    tip_threshold: float = 0.3
-    flip: bool = False
-    tip_shift_px: float = 0.0
-    zoom: bool = False
-    opset: int = 17
-    description: str = ""
-
-    def to_metadata(self) -> dict[str, str]:
-        return {f"turbinefit.{k}": str(v) for k, v in self.__dict__.items()}
-
-    @staticmethod
-    def from_metadata(meta: dict[str, str], path: Path) -> ModelInfo:
-        kw: dict[str, object] = {}
-        for name, typ in (("input_width", int), ("input_height", int), ("stride", int),
-                          ("output_scale", int), ("sigma_px", float), ("threshold", float),
-                          ("tip_threshold", float), ("flip", _flag),
-                          ("tip_shift_px", float), ("zoom", _flag), ("opset", int),
-                          ("description", str)):
-            key = f"turbinefit.{name}"
-            if key not in meta:
-                continue
-            try:
-                kw[name] = typ(meta[key])
-            except ValueError:
-                raise InputError(f"model metadata {key}={meta[key]!r} is not a valid "
-                                 f"{'flag (True or False)' if typ is _flag else typ.__name__}",
-                                 path=path) from None
-        info = ModelInfo(**kw)  # type: ignore[arg-type]
-        if (info.input_width < 16 or info.stride < 1 or not info.sigma_px > 0
-                or not valid_tip_shift(info.tip_shift_px)
-                or info.output_scale not in (1, 2) or info.stride % info.output_scale
-                or info.input_width % info.output_scale):
-            raise InputError(f"model metadata out of range: {info}", path=path)
-        if not MIN_OPSET <= info.opset <= MAX_OPSET:
-            raise InputError(f"model opset {info.opset} is not supported (need "
-                             f"{MIN_OPSET}..{MAX_OPSET})", path=path)
-        return info
-
-
-def _flag(text: str) -> bool:
-    if text not in ("True", "False"):
-        raise ValueError(text)
-    return text == "True"
 
 
 def _session_options(threads: int, spinning: bool) -> ort.SessionOptions:

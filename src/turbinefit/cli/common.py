@@ -94,7 +94,7 @@ def turbine_line(th: Any) -> str:
 # ---- photo detection ---------------------------------------------------------------------
 
 def _tip_shift(text: str) -> float:
-    from turbinefit.detect import TIP_SHIFT_TAPER_PX, valid_tip_shift
+    from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, valid_tip_shift
 
     v = number(text)
     if not valid_tip_shift(v):

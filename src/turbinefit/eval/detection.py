@@ -39,7 +39,7 @@ model that reads 320 x 240 photos and gives 160 x 120 maps: ``px_scale=2``).
   ``match_px``, so that the tips a net finds a few pixels inboard count too) on blades at
   least ``shift_min_blade_px`` (20 px) long whose hub is visible: how far the tip channel
   must move outward from the hub for its peaks to sit on the tips on average
-  (:attr:`turbinefit.detect.ModelInfo.tip_shift_px`). 0 from fewer than
+  (:attr:`turbinefit.heatmaps.model_info.ModelInfo.tip_shift_px`). 0 from fewer than
   ``shift_min_count`` (20) matches.
 """
 

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from turbinefit.geometry.se3 import SE3, pose_errors
+from turbinefit.geometry.se3 import SE3, pose_errors, quat_conjugate, quat_log, quat_multiply
 from turbinefit.turbine.model import (
     PAPER_GEOMETRY,
     TurbineGeometry,
@@ -61,6 +61,13 @@ def accuracy(
         model_point_error_m=model_point_error(turbine, gt_turbine, geometry),
         param_errors=pdict,
     )
+
+
+def roll_errors_deg(estimate: SE3, reference: SE3) -> np.ndarray:
+    """Per-keyframe rotation error about the camera's optical axis (z) [deg], signed: the
+    z component of ``Log(R_ref^T R_est)``."""
+    dq = quat_multiply(quat_conjugate(reference.wxyz), estimate.wxyz)
+    return np.degrees(quat_log(dq)[..., 2])
 
 
 def line_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:

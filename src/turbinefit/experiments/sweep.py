@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from turbinefit.errors import InputError
-from turbinefit.eval.metrics import accuracy
-from turbinefit.geometry.se3 import SE3, quat_conjugate, quat_log, quat_multiply
+from turbinefit.eval.metrics import accuracy, roll_errors_deg
+from turbinefit.geometry.se3 import SE3
 from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
 from turbinefit.sim.scenario import SimConfig, simulate_flight
@@ -176,7 +176,7 @@ class SweepConfig:
 def read_sweep_config(path: str | os.PathLike[str]) -> SweepConfig:
     """The sweep of a YAML file (e.g. a run's ``sweep.yaml``); every problem is an
     InputError naming the file (and line, for malformed YAML)."""
-    from turbinefit.io.camera_yaml import load_yaml_mapping
+    from turbinefit.io.yaml_files import load_yaml_mapping
 
     data = load_yaml_mapping(path)
     try:
@@ -256,13 +256,6 @@ def _sim_config(cfg: SweepConfig, spec: FlightSpec) -> SimConfig:
         drift_rot_deg=base.drift_rot_deg * spec.pose_scale,
         turbine_sigma=tuple(x * spec.theta_scale for x in DEFAULT_TURBINE_SIGMA),
         second_turbine=spec.second_turbine)
-
-
-def roll_errors_deg(estimate: SE3, reference: SE3) -> np.ndarray:
-    """Per-keyframe rotation error about the camera's optical axis (z) [deg], signed: the
-    z component of ``Log(R_ref^T R_est)``."""
-    dq = quat_multiply(quat_conjugate(reference.wxyz), estimate.wxyz)
-    return np.degrees(quat_log(dq)[..., 2])
 
 
 def _errors(prefix: str, poses: SE3, turbine: TurbineParams, gt_poses: SE3,

@@ -7,6 +7,7 @@ Formats, frames and units are described in each module's docstring:
 * :mod:`turbinefit.io.turbine_yaml` - the seven turbine parameters (metres, radians).
 * :mod:`turbinefit.io.flight_folder` - a whole flight (the above plus ``heatmaps/*.npy``).
 * :mod:`turbinefit.io.atomic` - atomic file and directory output.
+* :mod:`turbinefit.io.yaml_files` - strict YAML parsing shared by the YAML formats.
 
 Every bad input raises :class:`turbinefit.errors.InputError` naming the file (and line or
 field).

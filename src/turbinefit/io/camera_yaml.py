@@ -36,128 +36,21 @@ bottom row ``0 0 1`` and ``K[1, 0] == 0``, focal lengths positive. Numbers writt
 strings that PyYAML's YAML 1.1 does not recognise (``1e-5``) are accepted; ``nan``/``inf``
 are not. Duplicate keys are errors.
 
-This module also holds the YAML loading helpers shared with
-:mod:`turbinefit.io.turbine_yaml`.
+The YAML parsing (duplicate keys, OpenCV's directive and tags, numbers as text) is that of
+:mod:`turbinefit.io.yaml_files`.
 """
 
 from __future__ import annotations
 
-import json
-import math
-import re
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
-
-# --------------------------------------------------------------------------- YAML helpers
-
-_OPENCV_TAG = re.compile(r"!!opencv-(?:nd-)?matrix\b")
-#: A decimal number as text, e.g. ``1e-5``, which YAML 1.1 (PyYAML) reads as a string.
-FLOAT_TEXT = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-_FLOAT_TEXT = FLOAT_TEXT
-
-
-class _StrictLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses duplicate mapping keys."""
-
-
-def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode) -> dict[Any, Any]:
-    seen: set[Any] = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        try:
-            duplicate = key in seen
-        except TypeError:  # unhashable key: let PyYAML report it
-            continue
-        if duplicate:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark)
-        seen.add(key)
-    return loader.construct_mapping(node, deep=True)
-
-
-_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-def safe_load_strict(text: str) -> Any:
-    """``yaml.safe_load`` that also refuses duplicate mapping keys (a
-    ``yaml.constructor.ConstructorError`` marked at the second key)."""
-    return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
-
-
-def load_yaml_mapping(path: StrPath) -> dict[str, Any]:
-    """Parse a YAML file (ROS or OpenCV FileStorage flavour) whose top level is a mapping.
-
-    The OpenCV ``%YAML:1.0`` directive and ``!!opencv-matrix`` tags are blanked out first
-    (line numbers are kept). Raises :class:`InputError` naming the file (and line).
-    """
-    text = read_text(path)
-    if text.startswith("%YAML:"):
-        text = text[text.find("\n"):] if "\n" in text else ""
-    text = _OPENCV_TAG.sub("", text)
-    try:
-        data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
-    except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark or e.context_mark
-        line = mark.line + 1 if mark is not None else None
-        raise InputError(f"invalid YAML: {e.problem or e.context}", path=path, line=line) from e
-    except yaml.YAMLError as e:
-        raise InputError(f"invalid YAML: {e}", path=path) from e
-    if data is None:
-        raise InputError("file is empty", path=path)
-    if not isinstance(data, dict):
-        raise InputError(f"expected a YAML mapping (key: value lines), got {type(data).__name__}",
-                         path=path)
-    for key in data:
-        if not isinstance(key, str):
-            raise InputError(f"key {key!r} is not a string", path=path)
-    return data
-
-
-def parse_number(value: Any, path: StrPath, field: str) -> float:
-    """A finite float from a YAML scalar (int, float or numeric string), else InputError."""
-    if isinstance(value, bool) or value is None:
-        raise InputError(f"not a number: {value!r}", path=path, field=field)
-    if isinstance(value, int | float):
-        v = float(value)
-    elif isinstance(value, str) and _FLOAT_TEXT.fullmatch(value.strip()):
-        v = float(value)
-    elif isinstance(value, str) and value.strip().lower().lstrip("+-.") in ("nan", "inf",
-                                                                         "infinity"):
-        v = math.nan
-    else:
-        raise InputError(f"not a number: {value!r}", path=path, field=field)
-    if not math.isfinite(v):
-        raise InputError(f"must be finite, got {value!r}", path=path, field=field)
-    return v
-
-
-def yaml_float(x: float) -> str:
-    """A float as a YAML scalar that PyYAML reads back as the same float (repr, with a
-    ``.0`` before a bare exponent, e.g. ``1.0e-05``)."""
-    s = repr(float(x))
-    if "e" in s and "." not in s:
-        s = s.replace("e", ".0e", 1)
-    return s
-
-
-def _yaml_str(s: str) -> str:
-    """A string as a YAML scalar: plain if that reads back as the same string, else quoted."""
-    try:
-        if s and yaml.safe_load(s) == s and "\n" not in s and s.strip() == s:
-            return s
-    except yaml.YAMLError:
-        pass
-    return json.dumps(s)
-
-
-# --------------------------------------------------------------------------- camera
+from turbinefit.io.atomic import StrPath, write_text_atomic
+from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float, yaml_str
 
 _K_KEYS = ("camera_matrix", "cameraMatrix")
 _D_KEYS = ("distortion_coefficients", "distCoeffs", "dist_coeffs")
@@ -290,7 +183,7 @@ def format_camera_yaml(camera: PinholeCamera, name: str = "turbinefit") -> str:
     return (
         f"image_width: {int(camera.width)}\n"
         f"image_height: {int(camera.height)}\n"
-        f"camera_name: {_yaml_str(name)}\n"
+        f"camera_name: {yaml_str(name)}\n"
         + mat("camera_matrix", 3, 3, K)
         + "distortion_model: plumb_bob\n"
         + mat("distortion_coefficients", 1, 5, [float(c) for c in camera.distortion])

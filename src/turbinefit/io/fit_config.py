@@ -19,7 +19,7 @@ import yaml
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, read_text
-from turbinefit.io.camera_yaml import FLOAT_TEXT, safe_load_strict
+from turbinefit.io.yaml_files import FLOAT_TEXT, plain, safe_load_strict
 from turbinefit.solver.config import FitConfig
 from turbinefit.turbine.model import TurbineGeometry
 
@@ -101,15 +101,6 @@ def _typed_options(data: dict[Any, Any], path: Path) -> dict[str, Any]:
             if not all(math.isfinite(x) for x in out["pair_information"]):
                 raise InputError("pair_information: must be finite", path)
     return out
-
-
-def plain(obj: Any) -> Any:
-    """Tuples to lists, recursively (``yaml.safe_dump`` refuses tuples)."""
-    if isinstance(obj, dict):
-        return {k: plain(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [plain(v) for v in obj]
-    return obj
 
 
 def tracker_config_dict(cfg: TrackerConfig) -> dict[str, Any]:

@@ -6,10 +6,11 @@ decodes and encodes (PNG, JPEG and whatever else it reads); grey, palette, 16-bi
 alpha images are converted to 8-bit RGB, and EXIF orientation is applied, so a photo is
 seen the way a viewer shows it.
 
-Resizing (:func:`resize_image`, :func:`resize_maps`) uses Pillow's resampling, which
-keeps pixel centres aligned (the convention of
-:meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and low-pass filters when it
-shrinks (an area-weighted triangle filter), so a downsized photo shows no aliasing.
+Resizing (:func:`resize_image`) uses Pillow's resampling, which keeps pixel centres
+aligned (the convention of :meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and
+low-pass filters when it shrinks (an area-weighted triangle filter), so a downsized photo
+shows no aliasing; heat-maps are resized the same way by
+:func:`turbinefit.heatmaps.resize.resize_maps`.
 """
 
 from __future__ import annotations
@@ -109,17 +110,6 @@ def resize_image(image: U8Image, width: int, height: int,
         return image
     im = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB")
     return np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR, box=box))
-
-
-def resize_maps(maps: NDArray[np.float32], width: int, height: int) -> NDArray[np.float32]:
-    """Float maps (C, H, W) resized to (C, ``height``, ``width``), bilinear, per channel."""
-    if maps.shape[2] == width and maps.shape[1] == height:
-        return np.ascontiguousarray(maps, dtype=np.float32)
-    out = np.empty((maps.shape[0], int(height), int(width)), dtype=np.float32)
-    for c in range(maps.shape[0]):
-        im = Image.fromarray(np.ascontiguousarray(maps[c], dtype=np.float32), "F")
-        out[c] = np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR))
-    return out
 
 
 def list_images(inputs: list[Path]) -> list[Path]:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, write_text_atomic
-from turbinefit.io.camera_yaml import load_yaml_mapping, parse_number, yaml_float
+from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float
 from turbinefit.turbine.model import TurbineParams
 
 _UNITS = dict(zip(TurbineParams.NAMES, ("m", "m", "m", "rad", "m", "rad", "m"), strict=True))

@@ -59,10 +59,9 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
     from tqdm import tqdm
 
     from turbinefit.eval.detection import InstanceStats
+    from turbinefit.heatmaps.targets import TARGET_SIGMA_PX, render_keypoint_heatmaps
     from turbinefit.io.coco import read_coco_keypoints
     from turbinefit.io.images import check_image, read_image
-    from turbinefit.sim.dataset import TARGET_SIGMA_PX
-    from turbinefit.sim.render import render_keypoint_heatmaps
 
     if not (math.isfinite(match_px) and match_px > 0):
         raise InputError(f"must be a positive number, got {match_px}", field="match_px")

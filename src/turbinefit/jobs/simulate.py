@@ -9,8 +9,8 @@ from pathlib import Path
 import yaml
 
 from turbinefit import __version__
-from turbinefit.io.fit_config import plain
 from turbinefit.io.flight_folder import SIMULATION_FILE, check_flight_destination, write_flight
+from turbinefit.io.yaml_files import plain
 from turbinefit.jobs.outputs import OVERWRITE_HINT
 from turbinefit.sim.scenario import SimConfig, simulate_flight
 

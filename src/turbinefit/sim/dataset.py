@@ -7,13 +7,13 @@ varied training views of :func:`turbinefit.sim.images.sample_training_view`, 30 
 of planned inspection flights, horizontal field of view 50-90 deg). Targets are the
 skeleton's heat-maps (:func:`turbinefit.sim.render.render_heatmaps`, no imperfections) at
 the heat-map size ``width`` x ``height``, with blob / ridge standard deviation
-:data:`TARGET_SIGMA_PX`; only the inspected turbine is labelled (neighbours in view are
-background, as in a labelled real flight). The photo is ``image_scale`` times the heat-map
-size (the model's input; 2 for the shipped model, which sees 320 x 240 photos and gives
-160 x 120 heat-maps): it is rendered at ``max(RENDER_SCALE, image_scale)`` times the
-heat-map size and, where that is larger than the input, resized exactly as
-:mod:`turbinefit.detect` resizes a user's photo, so the net sees the same resampling at
-training and at inference.
+:data:`turbinefit.heatmaps.targets.TARGET_SIGMA_PX`; only the inspected turbine is
+labelled (neighbours in view are background, as in a labelled real flight). The photo is
+``image_scale`` times the heat-map size (the model's input; 2 for the shipped model, which
+sees 320 x 240 photos and gives 160 x 120 heat-maps): it is rendered at
+``max(RENDER_SCALE, image_scale)`` times the heat-map size and, where that is larger than
+the input, resized exactly as :mod:`turbinefit.detect` resizes a user's photo, so the net
+sees the same resampling at training and at inference.
 
 A dataset folder (:func:`build_dataset`) holds ``.npy`` arrays, filled in place so that an
 interrupted build resumes where it stopped:
@@ -51,6 +51,7 @@ from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
+from turbinefit.heatmaps.targets import TARGET_SIGMA_PX
 from turbinefit.io.atomic import StrPath, write_text_atomic
 from turbinefit.io.images import resize_image
 from turbinefit.sim.images import (
@@ -68,8 +69,6 @@ from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_point
 MODEL_WIDTH, MODEL_HEIGHT = 160, 120
 #: The shipped model's input photos are this many times the heat-map size (320 x 240).
 IMAGE_SCALE = 2
-#: Blob / ridge standard deviation of the targets [px at the model's input size].
-TARGET_SIGMA_PX = 1.5
 #: Photos are rendered at this multiple of the model's input size, then resized.
 RENDER_SCALE = 2
 #: Bumped whenever the renderer or the sampling changes what sample i looks like, or the

@@ -21,7 +21,9 @@ What is drawn (``sigma`` = :attr:`RenderConfig.sigma_px`):
 * overlapping responses combine by maximum (a CNN's sigmoid output saturates at 1).
 
 Distances are computed only inside the bounding box (+ 4 sigma) of each short piece
-(at most :attr:`RenderConfig.piece_px` long), never over the whole image.
+(at most :attr:`RenderConfig.piece_px` long), never over the whole image. Blobs and ridges
+are drawn by the primitives of :mod:`turbinefit.heatmaps.targets`, which draws the CNN's
+targets from labelled keypoints the same way.
 
 Imperfections (:class:`HeatmapNoise`, all off at 0): missed points and missed stretches of
 lines, peak amplitude jitter, spurious responses (blobs in point channels, short streaks in
@@ -46,6 +48,12 @@ from tqdm import tqdm
 from turbinefit.geometry.camera import MIN_DEPTH, PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
+from turbinefit.heatmaps.targets import (
+    CUTOFF_SIGMAS,
+    clip_segment_rect,
+    draw_blob,
+    draw_polyline,
+)
 from turbinefit.turbine.model import (
     LINES,
     PAPER_GEOMETRY,
@@ -57,8 +65,6 @@ from turbinefit.turbine.model import (
 FloatArray = NDArray[np.float64]
 F32Array = NDArray[np.float32]
 
-#: Blobs and ridges are cut off this many sigma from the centre (exp(-8) = 3e-4).
-CUTOFF_SIGMAS = 4.0
 _POINT_CH = tuple(int(c) for c in POINT_CHANNELS)
 #: Standard normal quantiles at the centres of 65536 equal-probability bins: indexing it
 #: with uniform 16-bit integers draws (16-bit quantised, |x| < 4.33) standard normal
@@ -122,84 +128,7 @@ class RenderConfig:
             raise ValueError(f"piece_px must be positive, got {self.piece_px}")
 
 
-# ---- drawing primitives -----------------------------------------------------------------
-
-
-def _draw_blob(img: F32Array, u: float, v: float, amp: float, sigma: float) -> None:
-    """Max-composite a separable Gaussian blob centred at pixel (u, v) into ``img`` (H, W)."""
-    h, w = img.shape
-    rad = CUTOFF_SIGMAS * sigma
-    j0, j1 = max(0, math.ceil(u - rad)), min(w, math.floor(u + rad) + 1)
-    i0, i1 = max(0, math.ceil(v - rad)), min(h, math.floor(v + rad) + 1)
-    if j0 >= j1 or i0 >= i1:
-        return
-    k = -0.5 / (sigma * sigma)
-    gx = np.exp(k * (np.arange(j0, j1) - u) ** 2)
-    gy = np.exp(k * (np.arange(i0, i1) - v) ** 2)
-    patch = (amp * gy[:, None] * gx[None, :]).astype(np.float32)
-    view = img[i0:i1, j0:j1]
-    np.maximum(view, patch, out=view)
-
-
-def _draw_piece(img: F32Array, x0: float, y0: float, x1: float, y1: float, amp: float,
-                sigma: float) -> None:
-    """Max-composite a Gaussian ridge along the pixel segment (x0, y0)-(x1, y1)."""
-    h, w = img.shape
-    rad = CUTOFF_SIGMAS * sigma
-    j0, j1 = max(0, math.ceil(min(x0, x1) - rad)), min(w, math.floor(max(x0, x1) + rad) + 1)
-    i0, i1 = max(0, math.ceil(min(y0, y1) - rad)), min(h, math.floor(max(y0, y1) + rad) + 1)
-    if j0 >= j1 or i0 >= i1:
-        return
-    ex, ey = x1 - x0, y1 - y0
-    l2 = ex * ex + ey * ey
-    xs = (np.arange(j0, j1) - x0)[None, :]
-    ys = (np.arange(i0, i1) - y0)[:, None]
-    if l2 < 1e-12:
-        d2 = xs * xs + ys * ys
-    else:
-        t = np.clip((xs * ex + ys * ey) * (1.0 / l2), 0.0, 1.0)
-        dx = xs - t * ex
-        dy = ys - t * ey
-        d2 = dx * dx + dy * dy
-    # hard cut-off at CUTOFF_SIGMAS from the segment (not at the box's corners), so that
-    # the pieces of a line add up to exactly the whole line
-    patch = (amp * np.exp((-0.5 / (sigma * sigma)) * d2)).astype(np.float32)
-    patch[d2 > rad * rad] = 0.0
-    view = img[i0:i1, j0:j1]
-    np.maximum(view, patch, out=view)
-
-
-def _draw_polyline(img: F32Array, uv: FloatArray, amp: float, sigma: float,
-                   piece_px: float) -> None:
-    """Draw consecutive points ``uv`` (n, 2) as pieces, each split to <= piece_px."""
-    for k in range(len(uv) - 1):
-        x0, y0 = float(uv[k, 0]), float(uv[k, 1])
-        x1, y1 = float(uv[k + 1, 0]), float(uv[k + 1, 1])
-        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / piece_px))
-        for m in range(n):
-            a, b = m / n, (m + 1) / n
-            _draw_piece(img, x0 + a * (x1 - x0), y0 + a * (y1 - y0),
-                        x0 + b * (x1 - x0), y0 + b * (y1 - y0), amp, sigma)
-
-
-def _clip_segment_rect(p0: FloatArray, p1: FloatArray, lo: FloatArray,
-                       hi: FloatArray) -> tuple[float, float] | None:
-    """Liang-Barsky: parameter range [t0, t1] of p0 + t (p1 - p0) inside the box, or None."""
-    t0, t1 = 0.0, 1.0
-    d = p1 - p0
-    for k in range(2):
-        if abs(d[k]) < 1e-15:
-            if p0[k] < lo[k] or p0[k] > hi[k]:
-                return None
-            continue
-        ta = (lo[k] - p0[k]) / d[k]
-        tb = (hi[k] - p0[k]) / d[k]
-        if ta > tb:
-            ta, tb = tb, ta
-        t0, t1 = max(t0, ta), min(t1, tb)
-        if t0 > t1:
-            return None
-    return t0, t1
+# ---- projection -------------------------------------------------------------------------
 
 
 def _clip_depth(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray] | None:
@@ -256,7 +185,7 @@ class _Painter:
                 continue
             if not ok[i]:
                 continue
-            _draw_blob(img[_POINT_CH[i]], float(uv[i, 0]), float(uv[i, 1]), amp, self.sigma)
+            draw_blob(img[_POINT_CH[i]], float(uv[i, 0]), float(uv[i, 1]), amp, self.sigma)
 
     def lines(self, img: F32Array, cam_p: FloatArray, rng: np.random.Generator | None) -> None:
         """Ridges of the five model lines between the points ``cam_p`` (6, 3)."""
@@ -283,15 +212,15 @@ class _Painter:
         na, nb = a[:2] / a[2], b[:2] / b[2]
         if not self.distorted:
             pa, pb = self._pinhole(na), self._pinhole(nb)
-            rng_t = _clip_segment_rect(pa, pb, self.lo, self.hi)
+            rng_t = clip_segment_rect(pa, pb, self.lo, self.hi)
             if rng_t is None:
                 return
             t0, t1 = rng_t
             d = pb - pa
-            _draw_polyline(img, np.stack([pa + t0 * d, pa + t1 * d]), amp, self.sigma,
-                           self.cfg.piece_px)
+            draw_polyline(img, np.stack([pa + t0 * d, pa + t1 * d]), amp, self.sigma,
+                          self.cfg.piece_px)
             return
-        rng_t = _clip_segment_rect(na, nb, self.norm_lo, self.norm_hi)
+        rng_t = clip_segment_rect(na, nb, self.norm_lo, self.norm_hi)
         if rng_t is None:
             return
         t0, t1 = rng_t
@@ -311,14 +240,14 @@ class _Painter:
             elif not good and start is not None:
                 run = uv[start:k]
                 if len(run) == 1:
-                    _draw_blob(img, float(run[0, 0]), float(run[0, 1]), amp, self.sigma)
+                    draw_blob(img, float(run[0, 0]), float(run[0, 1]), amp, self.sigma)
                 else:
                     inside = ((run[:, 0] >= self.lo[0]) & (run[:, 0] <= self.hi[0])
                               & (run[:, 1] >= self.lo[1]) & (run[:, 1] <= self.hi[1]))
                     # keep pieces with at least one end near the image
                     keep = inside[:-1] | inside[1:]
                     for kk in np.nonzero(keep)[0]:
-                        _draw_polyline(img, run[kk:kk + 2], amp, self.sigma, self.cfg.piece_px)
+                        draw_polyline(img, run[kk:kk + 2], amp, self.sigma, self.cfg.piece_px)
                 start = None
 
     def spurious(self, img: F32Array, rng: np.random.Generator) -> None:
@@ -333,10 +262,10 @@ class _Painter:
                 length = rng.uniform(*noise.spurious_length_px)
                 ang = rng.uniform(0.0, math.pi)
                 du, dv = 0.5 * length * math.cos(ang), 0.5 * length * math.sin(ang)
-                _draw_polyline(img[ch], np.array([[u - du, v - dv], [u + du, v + dv]]), amp,
-                               self.sigma, self.cfg.piece_px)
+                draw_polyline(img[ch], np.array([[u - du, v - dv], [u + du, v + dv]]), amp,
+                              self.sigma, self.cfg.piece_px)
             else:
-                _draw_blob(img[ch], u, v, amp, self.sigma)
+                draw_blob(img[ch], u, v, amp, self.sigma)
 
 
 def _render_into(out: F32Array, painter: _Painter, world_R_cam: FloatArray,
@@ -437,52 +366,4 @@ def render_flight(
     t = world_T_cam.translation
     for k in tqdm(range(n), desc="rendering heat-maps", unit="kf", disable=not progress):
         _render_into(out[k], painter, R[k], t[k], scenes, rngs[k])
-    return out
-
-
-def render_keypoint_heatmaps(
-    height: int,
-    width: int,
-    turbines_uv: Sequence[ArrayLike],
-    turbines_labelled: Sequence[ArrayLike],
-    sigma_px: float = 2.0,
-    piece_px: float = 24.0,
-) -> F32Array:
-    """Heat-maps (7, H, W) float32 drawn from labelled 2-D keypoints (e.g. COCO labels).
-
-    Args:
-        height, width: image size [px].
-        turbines_uv: per turbine, (6, 2) pixel positions of the model points in the order
-            of :data:`turbinefit.turbine.model.POINT_NAMES` (pixel convention of the module
-            docstring; positions outside the image are allowed).
-        turbines_labelled: per turbine, (6,) booleans: which points are labelled.
-        sigma_px: blob / ridge standard deviation [px].
-        piece_px: see :class:`RenderConfig`.
-
-    Each labelled point is a blob in its point channel; each model line whose two end
-    points are both labelled is a straight ridge between them (clipped to the image), the
-    same drawing as :func:`render_heatmaps` without lens distortion. A line with an
-    unlabelled end is not drawn (its extent is unknown).
-    """
-    if not (sigma_px > 0 and math.isfinite(sigma_px)):
-        raise ValueError(f"sigma_px must be positive, got {sigma_px}")
-    out = np.zeros((NUM_CHANNELS, int(height), int(width)), dtype=np.float32)
-    lo = np.array([-CUTOFF_SIGMAS * sigma_px] * 2)
-    hi = np.array([width - 1 + CUTOFF_SIGMAS * sigma_px, height - 1 + CUTOFF_SIGMAS * sigma_px])
-    for uv_in, lab_in in zip(turbines_uv, turbines_labelled, strict=True):
-        uv = np.asarray(uv_in, dtype=np.float64).reshape(6, 2)
-        lab = np.asarray(lab_in, dtype=bool).reshape(6) & np.isfinite(uv).all(axis=1)
-        for i in range(6):
-            if lab[i]:
-                _draw_blob(out[_POINT_CH[i]], float(uv[i, 0]), float(uv[i, 1]), 1.0, sigma_px)
-        for a_i, b_i, ch in LINES:
-            if not (lab[a_i] and lab[b_i]):
-                continue
-            pa, pb = uv[a_i], uv[b_i]
-            t = _clip_segment_rect(pa, pb, lo, hi)
-            if t is None:
-                continue
-            d = pb - pa
-            _draw_polyline(out[ch], np.stack([pa + t[0] * d, pa + t[1] * d]), 1.0, sigma_px,
-                           piece_px)
     return out

@@ -40,11 +40,11 @@ from scipy.ndimage import gaussian_filter1d
 
 from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
 from turbinefit.turbine.model import (
-    LINES,
     PAPER_GEOMETRY,
     TurbineGeometry,
     TurbineParams,
     model_points,
+    skeleton_segments,
 )
 
 FloatArray = NDArray[np.float64]
@@ -129,12 +129,6 @@ class InspectionPath:
 
 
 # ---- geometry helpers ---------------------------------------------------------------
-
-
-def skeleton_segments(theta: TurbineParams, geometry: TurbineGeometry = PAPER_GEOMETRY) -> FloatArray:
-    """The five model lines as segments (5, 2, 3) [m, world]."""
-    p, _ = model_points(theta.to_vector(), geometry)
-    return np.stack([np.stack([p[a], p[b]]) for a, b, _ in LINES])
 
 
 def distance_to_segments(points: FloatArray, segments: FloatArray) -> tuple[FloatArray, FloatArray]:

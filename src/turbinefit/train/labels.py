@@ -4,8 +4,8 @@ A photo is scaled (bilinear, antialiased) so that it covers the model's input si
 (``image_scale`` times the heat-map size ``width`` x ``height``) and centre-cropped to it
 (a 4:3 photo is only scaled); the labelled keypoints follow the same transform (pixel
 centres preserved) and the targets are drawn from them at the heat-map size by
-:func:`turbinefit.sim.render.render_keypoint_heatmaps`: a blob per labelled point, a ridge
-per model line whose two ends are labelled. Every labelled turbine of a photo is a
+:func:`turbinefit.heatmaps.targets.render_keypoint_heatmaps`: a blob per labelled point, a
+ridge per model line whose two ends are labelled. Every labelled turbine of a photo is a
 target.
 """
 
@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.heatmaps.targets import render_keypoint_heatmaps
 from turbinefit.io.coco import LabelledImage
 from turbinefit.io.images import read_image, resize_image
-from turbinefit.sim.render import render_keypoint_heatmaps
 
 
 def labelled_sample(item: LabelledImage, width: int, height: int, sigma_px: float,

@@ -219,6 +219,13 @@ def model_points(
     return world_p, J
 
 
+def skeleton_segments(theta: TurbineParams, geometry: TurbineGeometry = PAPER_GEOMETRY
+                      ) -> FloatArray:
+    """The five model lines of :data:`LINES` as segments (5, 2, 3) [m, world]."""
+    p, _ = model_points(theta.to_vector(), geometry)
+    return np.stack([np.stack([p[a], p[b]]) for a, b, _ in LINES])
+
+
 @dataclass(frozen=True)
 class LineSampling:
     """Where the line model is sampled: ``n`` points per line at interior fractions

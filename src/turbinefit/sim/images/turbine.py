@@ -12,8 +12,7 @@ from numpy.typing import ArrayLike
 
 from turbinefit.sim.images.arrays import F32, FloatArray, smoothstep
 from turbinefit.sim.images.scene import NACELLE_REAR, Scene
-from turbinefit.sim.trajectory import skeleton_segments
-from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_points
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_points, skeleton_segments
 
 _NACELLE_REAR_MAX = 16.0  # [m]
 

@@ -1,22 +1,9 @@
-"""Heat-map channels and read access to a flight's heat-maps.
-
-A keyframe's heat-maps are a float32 array (7, H, W) with values in [0, 1]; element
-``[c, i, j]`` is channel ``c`` at pixel ``u = j, v = i``. Channel order (the CNN's output
-and the simulator's), fixed for the whole package:
-
-====  ==================  ==================================
- 0    point_base          turbine base (paper P^P_g)
- 1    point_tower_top     top of the tower (P^P_t)
- 2    point_hub           centre of the blades (P^P_r)
- 3    point_blade_tip     all three blade tips (P^P_b)
- 4    line_tower          tower line (P^L_t)
- 5    line_nacelle        tower top -> hub (P^L_r)
- 6    line_blade          all three blades (P^L_b)
-====  ==================  ==================================
+"""Read access to a flight's heat-maps.
 
 :class:`HeatmapStack` holds either one in-memory array (N, 7, H, W) or one array per
 keyframe (typically read-only memory maps of ``heatmaps/*.npy``, so that a 1000-keyframe
 flight costs no RAM until pixels are touched); the costs only ever *gather* pixels from it.
+Channel order: :mod:`turbinefit.heatmaps.channels`.
 """
 
 from __future__ import annotations
@@ -26,14 +13,11 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-CHANNEL_NAMES = (
-    "point_base", "point_tower_top", "point_hub", "point_blade_tip",
-    "line_tower", "line_nacelle", "line_blade",
-)
-NUM_CHANNELS = 7
+from turbinefit.errors import TurbinefitError
+from turbinefit.heatmaps.channels import NUM_CHANNELS
 
 
-class NonFiniteHeatmapError(ValueError):
+class NonFiniteHeatmapError(TurbinefitError, ValueError):
     """A gathered heat-map value was NaN or infinite (names the keyframe index)."""
 
     def __init__(self, keyframe: int) -> None:
