@@ -53,9 +53,8 @@ from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
 from turbinefit.solver.config import FitConfig
-from turbinefit.solver.fit import corr_change, match_config
+from turbinefit.solver.fit import match_config
 from turbinefit.solver.linalg import arrow_covariance
-from turbinefit.solver.lm import levenberg_marquardt
 from turbinefit.solver.marginal import (
     GaussianPrior,
     PoseConditional,
@@ -63,6 +62,7 @@ from turbinefit.solver.marginal import (
     marginalize_pose,
 )
 from turbinefit.solver.problem import Correspondences, FitProblem, Linearization
+from turbinefit.solver.rounds import run_rounds
 from turbinefit.turbine.model import TurbineParams
 
 FloatArray = NDArray[np.float64]
@@ -364,24 +364,9 @@ class Tracker:
         for cfg, rounds, iters in stages:
             prob = FitProblem(flight, cfg, fixed=fixed, prior=self._window_prior(poses[0]),
                               evidence=np.array(self._w_evidence))
-            corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
-                    else Correspondences())
-            lin = prob.linearize(poses, theta, corr)
-            mu = cfg.initial_damping
-            for r in range(rounds):
-                out = levenberg_marquardt(prob, poses, theta, corr, lin, mu=mu,
-                                          max_iterations=iters)
-                poses, theta, lin = out.poses, out.theta, out.linearization
-                mu = max(out.mu, cfg.initial_damping)
-                iterations += out.iterations
-                if r == rounds - 1 or not prob.needs_correspondences:
-                    break
-                new = prob.find_correspondences(poses, theta)
-                flips, shift = corr_change(corr, new)
-                corr = new
-                lin = prob.linearize(poses, theta, corr)
-                if flips < 0.005 and shift < 0.25:
-                    break
+            out = run_rounds(prob, poses, theta, rounds, iters, finish="jacobian")
+            poses, theta, lin = out.poses, out.theta, out.linearization
+            iterations += out.iterations
         assert prob is not None and lin is not None
         self._theta = theta
         return poses, prob, lin, iterations
