@@ -36,7 +36,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit import _native
-from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
+from turbinefit.costs.correspondence import (
+    correspondence_terms,
+    find_line_correspondences,
+    find_point_correspondences,
+)
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import project_points
@@ -322,22 +326,10 @@ class FitProblem:
             n_in = int(pr.inside.sum())
         else:
             assert target is not None and found is not None
-            use = found & pr.front
-            info = lam / cfg.pixel_sigma**2
-            d = (pr.uv - target) * use[..., None]
-            if normal is None:  # 2-D distance to the found point (the paper's)
-                s = info * np.sum(d * d, axis=-1)
-                if with_jacobian:
-                    g = info * d
-                    H = np.zeros((*s.shape, 2, 2))
-                    H[..., 0, 0] = H[..., 1, 1] = info * use
-            else:  # distance along the search normal: free to slide along the line
-                dn = np.sum(d * normal, axis=-1)
-                s = info * dn * dn
-                if with_jacobian:
-                    g = (info * dn)[..., None] * normal
-                    H = (info * use)[..., None, None] * (normal[..., :, None] * normal[..., None, :])
-            n_in = int(use.sum())
+            ct = correspondence_terms(pr, target, found, normal, lam, cfg.pixel_sigma,
+                                      with_jacobian)
+            s, g, H = ct.s, ct.g, ct.H
+            n_in = int(ct.used.sum())
         rho, drho = self.loss.evaluate(s)
         cost = 0.5 * float(rho.sum())
         if not with_jacobian:
