@@ -60,8 +60,8 @@ from turbinefit.solver.marginal import (
     back_substitute,
     marginalize_pose,
 )
-from turbinefit.solver.problem import Correspondences, FitProblem, Linearization
-from turbinefit.solver.rounds import run_rounds
+from turbinefit.solver.problem import FitProblem, Linearization
+from turbinefit.solver.rounds import initial_correspondences, run_rounds
 from turbinefit.solver.window import TrackWindow
 from turbinefit.turbine.model import TurbineParams
 
@@ -472,8 +472,7 @@ class Tracker:
         theta = self._theta
         one = FitProblem(w.data, self._marg_cfg, keyframes=np.array([0]),
                          fixed=fixed[:1], evidence=w.evidence[:1])
-        corr = (one.find_correspondences(poses[0:1], theta) if one.needs_correspondences
-                else Correspondences())
+        corr = initial_correspondences(one, poses[0:1], theta)
         lin = one.linearize(poses[0:1], theta, corr)
         assert lin.D is not None and lin.g_p is not None
         has_next = len(poses) > 1
