@@ -7,7 +7,11 @@ import pytest
 from helpers import CAMERA, orbit_poses, smooth_heatmaps
 
 from turbinefit.costs.bicubic import interpolate
-from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
+from turbinefit.costs.correspondence import (
+    correspondence_terms,
+    find_line_correspondences,
+    find_point_correspondences,
+)
 from turbinefit.costs.heatmap_cost import G_MIN, border_weight, heatmap_terms, psd_2x2
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import Projection, project_points
@@ -269,3 +273,31 @@ def test_line_correspondence_along_normal():
     assert found.tolist() == [[True, True, False]]
     np.testing.assert_allclose(tgt[0, :2, 1], 30.4, atol=0.15)
     np.testing.assert_allclose(tgt[0, :2, 0], [20.0, 50.0])
+
+
+@pytest.mark.parametrize("along_normal", [False, True])
+def test_correspondence_gradient_and_gauss_newton_hessian(along_normal):
+    rng = np.random.default_rng(5)
+    uv = rng.uniform(0, 50, (2, 6, 2))
+    front = np.ones((2, 6), dtype=bool)
+    front[1, 0] = False
+    found = rng.uniform(size=(2, 6)) > 0.3
+    target = uv + rng.normal(scale=2.0, size=uv.shape)
+    ang = rng.uniform(0, 2 * np.pi, (2, 6))
+    normal = np.stack([np.cos(ang), np.sin(ang)], -1) if along_normal else None
+
+    def terms(x, derivatives=False):
+        return correspondence_terms(Projection(x, front, front, None), target, found, normal,
+                                    2.0, 1.5, derivatives)
+
+    ct = terms(uv, True)
+    assert ct.g is not None and ct.H is not None
+    assert np.array_equal(ct.used, found & front) and np.all(ct.s[~ct.used] == 0.0)
+    for a in range(2):
+        d = np.zeros_like(uv)
+        d[..., a] = EPS
+        num = (terms(uv + d).s - terms(uv - d).s) / (4 * EPS)  # of 1/2 s
+        np.testing.assert_allclose(ct.g[..., a], num, atol=1e-6)
+        # a quadratic: the Gauss-Newton Hessian is the exact one
+        num_h = (terms(uv + d, True).g - terms(uv - d, True).g) / (2 * EPS)
+        np.testing.assert_allclose(ct.H[..., :, a], num_h, atol=1e-6)

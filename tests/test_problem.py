@@ -10,6 +10,7 @@ from turbinefit.heatmaps import HeatmapStack
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.linalg import solve_arrow
 from turbinefit.solver.problem import FitProblem
+from turbinefit.solver.window import Keyframes
 from turbinefit.turbine.model import TurbineParams
 
 N = 4
@@ -71,6 +72,35 @@ def test_gauge_holds_first_pose():
     assert prob.fixed.tolist() == [True, False, False, False]
     assert FitProblem(make_flight(), FitConfig(gauge="gps")).fixed.sum() == 0
     assert FitProblem(make_flight(), FitConfig(mode="turbine")).fixed.all()
+
+
+def test_keyframes_give_the_same_problem_as_their_flight():
+    flight = make_flight()
+    data = Keyframes(flight.camera, flight.timestamps, flight.world_T_cam, flight.heatmaps,
+                     flight.odometry)
+    cfg = FitConfig(gauge="gps")
+    poses = flight.world_T_cam.retract(np.full((N, 6), 0.01))
+    theta = flight.turbine.to_vector()
+    lins = []
+    for prob in (FitProblem(flight, cfg), FitProblem(data, cfg)):
+        lins.append(prob.linearize(poses, theta, prob.find_correspondences(poses, theta)))
+    assert lins[0].cost == lins[1].cost and lins[0].terms == lins[1].terms
+    assert np.array_equal(lins[0].D, lins[1].D) and np.array_equal(lins[0].g_p, lins[1].g_p)
+
+
+def test_pairwise_edge_is_the_edge_of_the_pairwise_term():
+    flight = make_flight()
+    cfg = FitConfig(gauge="gps")
+    prob = FitProblem(flight, cfg)
+    poses = flight.world_T_cam.retract(np.full((N, 6), 0.02))
+    cost = 0.0
+    for e in range(N - 1):
+        r, Ji, Jj = prob.pairwise_edge(poses, e)
+        assert r.shape == (6,) and Ji.shape == Jj.shape == (6, 6)
+        cost += 0.5 * float(r @ r)
+    lin = prob.linearize(poses, flight.turbine.to_vector(), prob.find_correspondences(
+        poses, flight.turbine.to_vector()), with_jacobian=False)
+    assert cost == pytest.approx(lin.terms["pairwise"], rel=1e-12)
 
 
 @pytest.mark.parametrize("n", [2, 3, 7, 16, 33])

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from turbinefit.costs.pairwise import pairwise_residuals
+from turbinefit.errors import TurbinefitError
 from turbinefit.eval.metrics import accuracy
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3, pose_errors
@@ -128,14 +128,10 @@ def test_sequential_marginalisation_equals_the_batch_schur_complement() -> None:
         one = FitProblem(flight, cfg, keyframes=np.array([j]), fixed=np.array([j == 0]))
         lin1 = one.linearize(poses[j:j + 1], theta, one.find_correspondences(poses[j:j + 1], theta))
         assert lin1.D is not None and lin1.C is not None and lin1.g_p is not None
-        r, Ji, Jj = pairwise_residuals(poses[j:j + 1], poses[j + 1:j + 2],
-                                       batch.measured_rel[j:j + 1], batch.sqrt_info[j:j + 1],
-                                       True, None if batch.pair_frames is None
-                                       else batch.pair_frames[j:j + 1])
-        assert Ji is not None and Jj is not None
+        r, Ji, Jj = batch.pairwise_edge(poses, j)
         prior, cond = marginalize_pose(
             D=lin1.D[0], C=lin1.C[0], E=lin1.E, g_p=lin1.g_p[0], g_t=lin1.g_t, fixed=j == 0,
-            pair_Ji=Ji[0], pair_Jj=Jj[0], pair_r=r[0], prior=prior, world_T_drop=poses[j],
+            pair_Ji=Ji, pair_Jj=Jj, pair_r=r, prior=prior, world_T_drop=poses[j],
             world_T_next=poses[j + 1], theta=theta)
         assert (cond is None) == (j == 0)
     assert prior is not None
@@ -345,6 +341,7 @@ def test_bad_keyframes_are_refused_and_change_nothing() -> None:
         with pytest.raises(KeyframeError, match=why) as info:
             tr.update(t, pose, maps)
         assert info.value.index == 1
+        assert isinstance(info.value, TurbinefitError) and isinstance(info.value, ValueError)
         assert tr.num_keyframes == 1
     with pytest.raises(KeyframeError, match="detector"):
         tr.update(flight.timestamps[2], flight.world_T_cam[2])
@@ -386,6 +383,7 @@ def test_heatmap_stack_of_a_window_is_referenced_not_copied() -> None:
     tr = Tracker(flight.camera, flight.turbine)
     for k in range(2):
         tr.update(flight.timestamps[k], flight.world_T_cam[k], maps[k])
-    stack = tr._window_flight().heatmaps
+    assert tr._window is not None
+    stack = tr._window.data.heatmaps
     assert isinstance(stack, HeatmapStack)
     assert all(np.shares_memory(stack[k], maps[k]) for k in range(2))

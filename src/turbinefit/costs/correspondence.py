@@ -10,23 +10,66 @@
   ``threshold`` (bracketed by two searched pixels inside the image), refined by a
   log-parabola along the normal, is the correspondence.
 
-Residual: ``sqrt(lambda) (uv - a') / sigma_px`` for each point with a correspondence (the
-paper's squared 2-D distance, whitened by the expected detection noise ``sigma_px``).
-Correspondences are held fixed while the solver iterates and re-found as the estimate moves
-(an outer loop in :mod:`turbinefit.solver.problem`).
+Residual (:func:`correspondence_terms`): ``sqrt(lambda) (uv - a') / sigma_px`` for each
+point with a correspondence (the paper's squared 2-D distance, whitened by the expected
+detection noise ``sigma_px``), or, for line samples, optionally its component along the
+search normal (the model is then free to slide along its lines). Correspondences are held
+fixed while the solver iterates and re-found as the estimate moves (the rounds of
+:mod:`turbinefit.solver.rounds`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit import _native
+from turbinefit.costs.projection import Projection
 from turbinefit.heatmaps import HeatmapStack
 
 FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class CorrespondenceTerms:
+    """The correspondence cost of N x M points: ``1/2 s`` (N, M) with ``s`` the squared
+    whitened residual (0 without a correspondence), ``used`` (N, M) the points with a
+    correspondence in front of the camera, and with derivatives the gradient ``g``
+    (N, M, 2) of ``1/2 s`` w.r.t. uv and its Gauss-Newton Hessian ``H`` (N, M, 2, 2)."""
+
+    s: FloatArray
+    used: NDArray[np.bool_]
+    g: FloatArray | None = None
+    H: FloatArray | None = None
+
+
+def correspondence_terms(pr: Projection, target: FloatArray, found: NDArray[np.bool_],
+                         normal: FloatArray | None, lam: float, pixel_sigma: float,
+                         with_derivatives: bool) -> CorrespondenceTerms:
+    """The residual ``sqrt(lam) (uv - target) / pixel_sigma`` of the projections ``pr``
+    (N, M) against their ``target`` (N, M, 2) where ``found``; with unit ``normal``
+    (N, M, 2), only its component along the normal."""
+    use = found & pr.front
+    info = lam / pixel_sigma**2
+    d = (pr.uv - target) * use[..., None]
+    g: FloatArray | None = None
+    H: FloatArray | None = None
+    if normal is None:  # 2-D distance to the found point (the paper's)
+        s = info * np.sum(d * d, axis=-1)
+        if with_derivatives:
+            g = info * d
+            H = np.zeros((*s.shape, 2, 2))
+            H[..., 0, 0] = H[..., 1, 1] = info * use
+    else:  # distance along the search normal: free to slide along the line
+        dn = np.sum(d * normal, axis=-1)
+        s = info * dn * dn
+        if with_derivatives:
+            g = (info * dn)[..., None] * normal
+            H = (info * use)[..., None, None] * (normal[..., :, None] * normal[..., None, :])
+    return CorrespondenceTerms(s, use, g, H)
 
 
 @lru_cache(maxsize=8)

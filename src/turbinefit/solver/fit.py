@@ -10,8 +10,9 @@
 3. *refine*: the configured cost (by default the paper's best: point correspondences and
    heat-map interpolation for the lines) to convergence.
 
-Each stage runs rounds: LM with fixed correspondences (and visible-part line samples),
-then a new search; a stage ends when a search changes almost nothing. The heat-map term's
+Each stage runs rounds (:func:`turbinefit.solver.rounds.run_rounds`): LM with fixed
+correspondences (and visible-part line samples), then a new search; a stage ends when a
+search changes almost nothing. The heat-map term's
 basin is a few pixels wide, so without the warm-up (``warmup=False``) initial errors of a
 few degrees in heading or blade rotation leave it stranded (see the tests).
 """
@@ -29,8 +30,9 @@ from numpy.typing import NDArray
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig
-from turbinefit.solver.lm import IterationRecord, levenberg_marquardt
-from turbinefit.solver.problem import Correspondences, FitProblem
+from turbinefit.solver.lm import IterationRecord
+from turbinefit.solver.problem import FitProblem
+from turbinefit.solver.rounds import initial_correspondences, run_rounds
 from turbinefit.turbine.model import TurbineParams
 
 
@@ -65,29 +67,6 @@ class FitResult:
     num_residuals: int
     config: FitConfig
     history: list[IterationRecord] = field(default_factory=list)
-
-
-def corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
-    """Fraction of found-flags that changed and mean target shift [px] of the rest."""
-    flips = 0
-    total = 0
-    shifts: list[NDArray[np.float64]] = []
-    for ta, fa, tb, fb in ((a.point_target, a.point_found, b.point_target, b.point_found),
-                           (a.line_target, a.line_found, b.line_target, b.line_found)):
-        if fa is None or fb is None or ta is None or tb is None:
-            continue
-        flips += int(np.sum(fa != fb))
-        total += fa.size
-        both = fa & fb
-        shifts.append(np.linalg.norm(ta[both] - tb[both], axis=-1))
-    allshift = np.concatenate(shifts) if shifts else np.zeros(0)
-    shift = float(allshift.mean()) if allshift.size else 0.0
-    if a.line_fractions is not None and b.line_fractions is not None:
-        # visible-part sampling moved: count samples that moved by > 2 % of their line
-        moved = np.abs(a.line_fractions - b.line_fractions) > 0.02
-        flips += int(moved.sum())
-        total += moved.size
-    return flips / max(total, 1), shift
 
 
 @dataclass
@@ -159,42 +138,19 @@ def fit(
     rounds = 0
     # the configured cost at the start, for the summary (its correspondences are reused if
     # the configured cost is also the first stage)
-    corr0 = (problem.find_correspondences(poses, theta) if problem.needs_correspondences
-             else Correspondences())
+    corr0 = initial_correspondences(problem, poses, theta)
     start = problem.linearize(poses, theta, corr0, with_jacobian=False)
     lin = start
     for stage in stages:
-        prob = stage.problem
-        if prob is problem and stage is stages[0]:
-            corr = corr0
-        else:
-            corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
-                    else Correspondences())
-        lin = prob.linearize(poses, theta, corr)
-        mu = cfg.initial_damping
         final_stage = stage is stages[-1]
-        for r in range(stage.rounds):
-            rounds += 1
-            out = levenberg_marquardt(prob, poses, theta, corr, lin, round_index=rounds,
-                                      mu=mu, max_iterations=stage.iterations,
-                                      history=history, callback=callback, stage=stage.name)
-            poses, theta, lin = out.poses, out.theta, out.linearization
-            mu = max(out.mu, cfg.initial_damping)
-            iterations += out.iterations
-            termination = out.termination
-            last = r == stage.rounds - 1
-            if not prob.needs_correspondences or (last and not final_stage):
-                break  # (the next stage searches for its own correspondences)
-            new_corr = prob.find_correspondences(poses, theta)
-            flips, shift = corr_change(corr, new_corr)
-            corr = new_corr
-            done = last or (flips < 0.005 and shift < 0.25)
-            if done and not final_stage:
-                break
-            # the final cost is measured with the correspondences of the final estimate
-            lin = prob.linearize(poses, theta, corr, with_jacobian=not done)
-            if done:
-                break
+        out = run_rounds(stage.problem, poses, theta, stage.rounds, stage.iterations,
+                         corr=corr0 if stage.problem is problem and stage is stages[0] else None,
+                         finish="cost" if final_stage else "skip", first_round=rounds,
+                         history=history, callback=callback, stage=stage.name)
+        poses, theta, lin = out.poses, out.theta, out.linearization
+        iterations += out.iterations
+        termination = out.termination
+        rounds += out.rounds
     turbine = TurbineParams.from_vector(theta).canonical()
     return FitResult(
         world_T_cam=poses, turbine=turbine, initial_cost=start.cost, final_cost=lin.cost,

@@ -30,23 +30,53 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit import _native
-from turbinefit.costs.correspondence import find_line_correspondences, find_point_correspondences
+from turbinefit.costs.correspondence import (
+    correspondence_terms,
+    find_line_correspondences,
+    find_point_correspondences,
+)
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import project_points
 from turbinefit.costs.robust import RobustLoss
-from turbinefit.flight import Flight
+from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps import HeatmapStack
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.marginal import GaussianPrior
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
 FloatArray = NDArray[np.float64]
+
+
+class ProblemData(Protocol):
+    """What a :class:`FitProblem` reads of its keyframes: a
+    :class:`~turbinefit.flight.Flight`, or :class:`~turbinefit.solver.window.Keyframes`."""
+
+    @property
+    def camera(self) -> PinholeCamera:
+        """Intrinsics of the heat-maps' pixel grid."""
+
+    @property
+    def world_T_cam(self) -> SE3:
+        """(N,) initial (GPS/IMU) camera-to-world poses: the anchors of ``gauge="gps"``."""
+
+    @property
+    def heatmaps(self) -> HeatmapStack:
+        """The N keyframes' heat-maps."""
+
+    @property
+    def num_keyframes(self) -> int:
+        """N."""
+
+    def measurement_poses(self) -> SE3:
+        """(N,) poses whose consecutive relative poses are the pairwise measurements."""
 
 
 @dataclass
@@ -112,10 +142,11 @@ class Linearization:
 
 
 class FitProblem:
-    """The least-squares problem of one flight under one :class:`FitConfig`.
+    """The least-squares problem of one flight (or window of keyframes) under one
+    :class:`FitConfig`.
 
     Args:
-        flight: the data (camera, heat-maps, initial poses, measurements).
+        data: the keyframes (camera, heat-maps, initial poses, measurements).
         config: the fit options.
         keyframes: indices into the flight's keyframes to use (default: all), in time order;
             consecutive ones are linked by pairwise edges.
@@ -129,20 +160,20 @@ class FitProblem:
             the turbine out of their view. Default: all True.
     """
 
-    def __init__(self, flight: Flight, config: FitConfig,
+    def __init__(self, data: ProblemData, config: FitConfig,
                  keyframes: NDArray[np.int_] | None = None, *,
                  fixed: NDArray[np.bool_] | None = None,
                  prior: GaussianPrior | None = None,
                  evidence: NDArray[np.bool_] | None = None) -> None:
-        self.flight = flight
+        self.data = data
         self.config = config
-        self.keyframes = (np.arange(flight.num_keyframes) if keyframes is None
+        self.keyframes = (np.arange(data.num_keyframes) if keyframes is None
                           else np.asarray(keyframes, dtype=np.int64))
         self.num_keyframes = int(self.keyframes.size)
-        meas = flight.measurement_poses()[self.keyframes]
-        self.measured_rel = relative_poses(meas[:-1], meas[1:])
+        meas = data.measurement_poses()[self.keyframes]
+        self._measured_rel = relative_poses(meas[:-1], meas[1:])
         #: (E, 3, 3) fixed frames of the pairwise translation residual, or None (estimated).
-        self.pair_frames: FloatArray | None = (
+        self._pair_frames: FloatArray | None = (
             meas[:-1].rotation_matrix() if config.pair_frame == "measured" else None)
         if config.pair_information is not None:
             C = np.asarray(config.pair_information, dtype=np.float64).reshape(6, 6)
@@ -153,15 +184,15 @@ class FitProblem:
                 raise ValueError("pair_information must be positive definite") from exc
             sqrt_info = np.broadcast_to(L, (max(self.num_keyframes - 1, 0), 6, 6))
         else:
-            step = np.linalg.norm(self.measured_rel.translation, axis=-1)
+            step = np.linalg.norm(self._measured_rel.translation, axis=-1)
             sig_t = np.sqrt(config.pair_sigma_t**2 + (config.pair_sigma_t_per_m * step) ** 2)
             diag = np.empty((step.size, 6))
             diag[:, :3] = 1.0 / sig_t[:, None]
             diag[:, 3:] = 1.0 / math.radians(config.pair_sigma_r_deg)
             sqrt_info = diag[:, :, None] * np.eye(6)
         #: (E, 6, 6) per-edge square-root information L (C = L^T L), times sqrt(lambda).
-        self.sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(sqrt_info)
-        self.prior_position = flight.world_T_cam.translation[self.keyframes].copy()
+        self._sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(sqrt_info)
+        self.prior_position = data.world_T_cam.translation[self.keyframes].copy()
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
         self._line_index = np.repeat(np.arange(len(LINES)), n)
@@ -211,7 +242,7 @@ class FitProblem:
         ends = np.array([[ln[0], ln[1]] for ln in LINES])
         pts = (P[ends[:, 0]][:, None] * (1 - dense[:, None])
                + P[ends[:, 1]][:, None] * dense[:, None]).reshape(-1, 3)
-        pr = project_points(self.flight.camera, poses, pts, None, with_jacobian=False)
+        pr = project_points(self.data.camera, poses, pts, None, with_jacobian=False)
         vis = pr.inside.reshape(-1, len(LINES), dense.size)  # (N, 5, 65)
         any_vis = vis.any(axis=-1)
         step = dense[1]
@@ -234,7 +265,7 @@ class FitProblem:
         """Per-round data at the current estimate: correspondences of the corr terms
         (searched around the current projections) and the visible-part line sampling."""
         cfg = self.config
-        cam = self.flight.camera
+        cam = self.data.camera
         out = Correspondences()
         if cfg.line_sampling == "visible" and cfg.lines != "none":
             out.line_fractions = self.visible_fractions(poses, theta)
@@ -243,7 +274,7 @@ class FitProblem:
         if cfg.points == "corr":
             pr = project_points(cam, poses, P, None, with_jacobian=False)
             out.point_target, out.point_found = find_point_correspondences(
-                self.flight.heatmaps, self.keyframes, POINT_CHANNELS, pr.uv, pr.inside,
+                self.data.heatmaps, self.keyframes, POINT_CHANNELS, pr.uv, pr.inside,
                 cfg.corr_radius, cfg.corr_threshold)
         if cfg.lines == "corr":
             pr = project_points(cam, poses, S, None, with_jacobian=False)
@@ -255,9 +286,20 @@ class FitProblem:
             normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=-1)
             out.line_normal = normal
             out.line_target, out.line_found = find_line_correspondences(
-                self.flight.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
+                self.data.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
                 usable, cfg.line_search, cfg.corr_threshold)
         return out
+
+    def pairwise_edge(self, poses: SE3, edge: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The whitened residual (6,) of pairwise edge ``edge`` (between the problem's
+        keyframes ``edge`` and ``edge + 1``) at ``poses`` (the problem's keyframes), and its
+        Jacobians (6, 6) w.r.t. the local updates of the two poses."""
+        e = slice(edge, edge + 1)
+        frames = None if self._pair_frames is None else self._pair_frames[e]
+        r, Ji, Jj = pairwise_residuals(poses[e], poses[edge + 1:edge + 2],
+                                       self._measured_rel[e], self._sqrt_info[e], True, frames)
+        assert Ji is not None and Jj is not None
+        return r[0], Ji[0], Jj[0]
 
     # ------------------------------------------------------------------------------
     def _image_block(self, keyframes: NDArray[np.int_], kind: str, smp: Samples,
@@ -273,33 +315,21 @@ class FitProblem:
         blend = None
         if smp.f is not None and smp.JA is not None and smp.JB is not None:
             blend = (smp.JA, smp.JB, smp.f)
-        pr = project_points(self.flight.camera, poses, smp.points(),
+        pr = project_points(self.data.camera, poses, smp.points(),
                             smp.JA if smp.f is None else None, with_jacobian, blend=blend)
         g: FloatArray | None = None
         H: FloatArray | None = None
         if kind == "interp":
-            ht = heatmap_terms(self.flight.heatmaps, keyframes, channels, pr, lam,
+            ht = heatmap_terms(self.data.heatmaps, keyframes, channels, pr, lam,
                                cfg.border_margin, cfg.heatmap_floor, with_jacobian)
             s, g, H = ht.s, ht.g, ht.H
             n_in = int(pr.inside.sum())
         else:
             assert target is not None and found is not None
-            use = found & pr.front
-            info = lam / cfg.pixel_sigma**2
-            d = (pr.uv - target) * use[..., None]
-            if normal is None:  # 2-D distance to the found point (the paper's)
-                s = info * np.sum(d * d, axis=-1)
-                if with_jacobian:
-                    g = info * d
-                    H = np.zeros((*s.shape, 2, 2))
-                    H[..., 0, 0] = H[..., 1, 1] = info * use
-            else:  # distance along the search normal: free to slide along the line
-                dn = np.sum(d * normal, axis=-1)
-                s = info * dn * dn
-                if with_jacobian:
-                    g = (info * dn)[..., None] * normal
-                    H = (info * use)[..., None, None] * (normal[..., :, None] * normal[..., None, :])
-            n_in = int(use.sum())
+            ct = correspondence_terms(pr, target, found, normal, lam, cfg.pixel_sigma,
+                                      with_jacobian)
+            s, g, H = ct.s, ct.g, ct.H
+            n_in = int(ct.used.sum())
         rho, drho = self.loss.evaluate(s)
         cost = 0.5 * float(rho.sum())
         if not with_jacobian:
@@ -319,7 +349,7 @@ class FitProblem:
         """:meth:`_image_block` by the compiled kernel, adding into ``JtHJ`` and ``g``
         (when given); returns cost and points in view."""
         cfg = self.config
-        cam = self.flight.camera
+        cam = self.data.camera
         cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
             smp.JA, smp.JB, smp.f, channels, maps, keyframes, kind, target, found, normal, lam,
@@ -357,7 +387,7 @@ class FitProblem:
             return a if a is None or sel is None else a[sel]
 
         n_res = 0
-        maps = self.flight.heatmaps.pointers() if _native.available() else None
+        maps = self.data.heatmaps.pointers() if _native.available() else None
         for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
@@ -392,8 +422,8 @@ class FitProblem:
             g_u[sel] = g_img
         want_pair = N > 1 and cfg.lambda_pair > 0
         if want_pair:
-            rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self.measured_rel,
-                                            self.sqrt_info, with_jacobian, self.pair_frames)
+            rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self._measured_rel,
+                                            self._sqrt_info, with_jacobian, self._pair_frames)
             terms["pairwise"] = 0.5 * float(np.sum(rp * rp))
         use_prior = cfg.gauge == "gps" and cfg.mode != "turbine"
         if use_prior:

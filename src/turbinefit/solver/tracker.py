@@ -47,22 +47,22 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from turbinefit.costs.pairwise import pairwise_residuals
-from turbinefit.flight import Flight
+from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
-from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
+from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.solver.config import FitConfig
-from turbinefit.solver.fit import corr_change, match_config
+from turbinefit.solver.fit import match_config
 from turbinefit.solver.linalg import arrow_covariance
-from turbinefit.solver.lm import levenberg_marquardt
 from turbinefit.solver.marginal import (
     GaussianPrior,
     PoseConditional,
     back_substitute,
     marginalize_pose,
 )
-from turbinefit.solver.problem import Correspondences, FitProblem, Linearization
+from turbinefit.solver.problem import FitProblem, Linearization
+from turbinefit.solver.rounds import initial_correspondences, run_rounds
+from turbinefit.solver.window import TrackWindow
 from turbinefit.turbine.model import TurbineParams
 
 FloatArray = NDArray[np.float64]
@@ -188,7 +188,7 @@ class TrackEstimate:
         return float(math.sqrt(max(float(np.trace(self.pose_covariance[:3, :3])), 0.0) / 3.0))
 
 
-class KeyframeError(ValueError):
+class KeyframeError(TurbinefitError, ValueError):
     """An input keyframe is unusable (out of order, wrong shape, not finite); ``index``
     is its number in arrival order. The tracker's state is unchanged."""
 
@@ -245,13 +245,8 @@ class Tracker:
         self._theta = initial_turbine.to_vector().astype(np.float64)
         if not np.all(np.isfinite(self._theta)):
             raise ValueError("initial turbine contains NaN or inf")
-        # the window (lists, oldest first)
-        self._w_index: list[int] = []
-        self._w_time: list[float] = []
-        self._w_meas: list[SE3] = []
-        self._w_est: list[SE3] = []
-        self._w_maps: list[NDArray[np.floating]] = []
-        self._w_evidence: list[bool] = []
+        #: the sliding window (None until the first keyframe)
+        self._window: TrackWindow | None = None
         #: what marginalised keyframes left: a prior on the window's first pose and theta
         self._marginal: GaussianPrior | None = None
         #: per marginalised keyframe: its conditional and the prior its elimination made
@@ -293,12 +288,14 @@ class Tracker:
         ``back_substitution=False``, frozen at their estimate when they left the window."""
         out: list[SE3 | None] = list(self._final)
         n_old = len(self._conditionals)  # keyframes 0 .. n_old-1 have left the window
-        if back_substitution and n_old and self._w_est:
-            frozen = [p for p in out[:n_old] if p is not None]
-            out[:n_old] = back_substitute(self._conditionals, self._cond_priors, frozen,
-                                          self._w_est[0], self._theta)
-        for i, k in enumerate(self._w_index):
-            out[k] = self._w_est[i]
+        w = self._window
+        if w is not None:
+            if back_substitution and n_old:
+                frozen = [p for p in out[:n_old] if p is not None]
+                out[:n_old] = back_substitute(self._conditionals, self._cond_priors, frozen,
+                                              w.world_T_cam[0], self._theta)
+            for i, k in enumerate(w.index):
+                out[k] = w.world_T_cam[i]
         return SE3(np.stack([p.wxyz_xyz for p in out if p is not None]))
 
     def causal_world_T_cam(self) -> SE3:
@@ -326,14 +323,10 @@ class Tracker:
             raise KeyframeError(k, "heat-maps contain NaN or inf")
         return maps
 
-    def _window_flight(self) -> Flight:
-        meas = SE3(np.stack([p.wxyz_xyz for p in self._w_meas]))
-        return Flight(self.camera, np.asarray(self._w_time), meas, HeatmapStack(self._w_maps),
-                      TurbineParams.from_vector(self._theta))
-
     def _fixed(self) -> NDArray[np.bool_]:
-        fixed = np.zeros(len(self._w_index), dtype=bool)
-        if self.config.fit.gauge == "first" and self._w_index[0] == 0:
+        assert self._window is not None
+        fixed = np.zeros(len(self._window), dtype=bool)
+        if self.config.fit.gauge == "first" and self._window.index[0] == 0:
             fixed[0] = True
         return fixed
 
@@ -353,37 +346,27 @@ class Tracker:
         g[6:] += info * (m.theta - self._theta0)
         return GaussianPrior(m.world_T_cam, m.theta, H, g)
 
-    def _run(self, flight: Flight, poses: SE3, stages: list[tuple[FitConfig, int, int]]
+    def _run(self, stages: list[tuple[FitConfig, int, int]]
              ) -> tuple[SE3, FitProblem, Linearization, int]:
-        """Rounds of LM on the window: ``stages`` of (config, rounds, iterations)."""
+        """Rounds of LM on the window: ``stages`` of (config, rounds, iterations). Updates
+        theta and the window's estimates."""
+        w = self._window
+        assert w is not None
+        poses = w.world_T_cam
         fixed = self._fixed()
         theta = self._theta
         iterations = 0
         prob: FitProblem | None = None
         lin: Linearization | None = None
         for cfg, rounds, iters in stages:
-            prob = FitProblem(flight, cfg, fixed=fixed, prior=self._window_prior(poses[0]),
-                              evidence=np.array(self._w_evidence))
-            corr = (prob.find_correspondences(poses, theta) if prob.needs_correspondences
-                    else Correspondences())
-            lin = prob.linearize(poses, theta, corr)
-            mu = cfg.initial_damping
-            for r in range(rounds):
-                out = levenberg_marquardt(prob, poses, theta, corr, lin, mu=mu,
-                                          max_iterations=iters)
-                poses, theta, lin = out.poses, out.theta, out.linearization
-                mu = max(out.mu, cfg.initial_damping)
-                iterations += out.iterations
-                if r == rounds - 1 or not prob.needs_correspondences:
-                    break
-                new = prob.find_correspondences(poses, theta)
-                flips, shift = corr_change(corr, new)
-                corr = new
-                lin = prob.linearize(poses, theta, corr)
-                if flips < 0.005 and shift < 0.25:
-                    break
+            prob = FitProblem(w.data, cfg, fixed=fixed, prior=self._window_prior(poses[0]),
+                              evidence=w.evidence)
+            out = run_rounds(prob, poses, theta, rounds, iters, finish="jacobian")
+            poses, theta, lin = out.poses, out.theta, out.linearization
+            iterations += out.iterations
         assert prob is not None and lin is not None
         self._theta = theta
+        self._window = w.with_estimate(poses)
         return poses, prob, lin, iterations
 
     def update(self, timestamp: float, world_T_cam: SE3,
@@ -410,30 +393,25 @@ class Tracker:
             heatmaps = self.detector(image)
         maps = self._check(float(timestamp), world_T_cam, heatmaps)
         index = len(self._times)
-        if self._w_est:
-            pred = _predict(self._w_est[-1], self._w_meas[-1], world_T_cam)
-        else:
-            pred = world_T_cam
         self._times.append(float(timestamp))
         self._final.append(None)
-        self._w_index.append(index)
-        self._w_time.append(float(timestamp))
-        self._w_meas.append(world_T_cam)
-        self._w_est.append(pred)
-        self._w_maps.append(maps)
         evidence = float(maps.max()) >= self.config.fit.corr_threshold
-        self._w_evidence.append(evidence)
+        w = self._window
+        if w is None:
+            self._window = TrackWindow.first(self.camera, index, float(timestamp), world_T_cam,
+                                             maps, world_T_cam, evidence)
+        else:
+            last = len(w) - 1
+            pred = _predict(w.world_T_cam[last], w.data.world_T_cam[last], world_T_cam)
+            self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence)
 
         cfg = self.config
-        flight = self._window_flight()
-        poses = SE3(np.stack([p.wxyz_xyz for p in self._w_est]))
         stages = []
         lost = bool(self.estimates) and not self.estimates[-1].evidence
         if cfg.match_rounds > 0 and (index < cfg.match_keyframes or lost):
             stages.append((self._match_cfg, cfg.match_rounds, cfg.fit.warmup_iterations))
         stages.append((self._refine_cfg, cfg.rounds, cfg.iterations))
-        poses, prob, lin, iterations = self._run(flight, poses, stages)
-        self._w_est = [poses[i] for i in range(len(poses))]
+        poses, prob, lin, iterations = self._run(stages)
         pose_cov, theta_cov = self._covariance(lin, len(poses) - 1)
         self._maybe_release_prior(theta_cov)
         estimate = TrackEstimate(
@@ -441,8 +419,8 @@ class Tracker:
             turbine=self.turbine, pose_covariance=pose_cov, theta_covariance=theta_cov,
             cost=lin.cost, iterations=iterations, window=len(poses),
             in_view=dict(lin.in_view), evidence=evidence, update_s=0.0)
-        if cfg.window is not None and len(self._w_index) >= cfg.window:
-            self._marginalize_oldest(flight, poses, prob)
+        if cfg.window is not None and len(poses) >= cfg.window:
+            self._marginalize_oldest(poses, prob)
         estimate = dataclasses.replace(estimate, update_s=time.perf_counter() - t0)
         self.estimates.append(estimate)
         return estimate
@@ -486,29 +464,26 @@ class Tracker:
         except np.linalg.LinAlgError:
             return None, None
 
-    def _marginalize_oldest(self, flight: Flight, poses: SE3, prob: FitProblem) -> None:
+    def _marginalize_oldest(self, poses: SE3, prob: FitProblem) -> None:
         """Fold the window's oldest keyframe into the prior and freeze its pose."""
+        w = self._window
+        assert w is not None
         fixed = self._fixed()
         theta = self._theta
-        one = FitProblem(flight, self._marg_cfg, keyframes=np.array([0]),
-                         fixed=fixed[:1], evidence=np.array(self._w_evidence[:1]))
-        corr = (one.find_correspondences(poses[0:1], theta) if one.needs_correspondences
-                else Correspondences())
+        one = FitProblem(w.data, self._marg_cfg, keyframes=np.array([0]),
+                         fixed=fixed[:1], evidence=w.evidence[:1])
+        corr = initial_correspondences(one, poses[0:1], theta)
         lin = one.linearize(poses[0:1], theta, corr)
         assert lin.D is not None and lin.g_p is not None
         has_next = len(poses) > 1
         Ji = Jj = r = None
         if has_next:
-            frames = None if prob.pair_frames is None else prob.pair_frames[0:1]
-            r, Ji, Jj = pairwise_residuals(poses[0:1], poses[1:2], prob.measured_rel[0:1],
-                                           prob.sqrt_info[0:1], True, frames)
-            assert Ji is not None and Jj is not None
+            r, Ji, Jj = prob.pairwise_edge(poses, 0)
         try:
             self._marginal, cond = marginalize_pose(
                 D=lin.D[0], C=None if lin.C is None else lin.C[0], E=lin.E,
                 g_p=lin.g_p[0], g_t=lin.g_t, fixed=bool(fixed[0]),
-                pair_Ji=None if Ji is None else Ji[0], pair_Jj=None if Jj is None else Jj[0],
-                pair_r=None if r is None else r[0], prior=self._marginal,
+                pair_Ji=Ji, pair_Jj=Jj, pair_r=r, prior=self._marginal,
                 world_T_drop=poses[0], world_T_next=poses[1] if has_next else poses[0],
                 theta=theta)
         except np.linalg.LinAlgError:
@@ -516,20 +491,14 @@ class Tracker:
             cond = None
         self._conditionals.append(cond)
         self._cond_priors.append(self._marginal if cond is not None else None)
-        self._final[self._w_index[0]] = self._w_est[0]
-        for lst in (self._w_index, self._w_time, self._w_meas, self._w_est, self._w_maps,
-                    self._w_evidence):
-            del lst[0]
+        self._final[int(w.index[0])] = w.world_T_cam[0]
+        self._window = w.drop_oldest()
 
     def finish(self) -> TurbineParams:
         """Converge the window (configured cost, ``finish_rounds`` x ``finish_iterations``);
         with ``window=None`` this is the batch solve. Returns the turbine."""
-        if not self._w_est:
+        if self._window is None:
             return self.turbine
         cfg = self.config
-        flight = self._window_flight()
-        poses = SE3(np.stack([p.wxyz_xyz for p in self._w_est]))
-        poses, _, _, _ = self._run(flight, poses, [(self._refine_cfg, cfg.finish_rounds,
-                                                    cfg.finish_iterations)])
-        self._w_est = [poses[i] for i in range(len(poses))]
+        self._run([(self._refine_cfg, cfg.finish_rounds, cfg.finish_iterations)])
         return self.turbine
