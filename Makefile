@@ -48,7 +48,7 @@ bench-blender: $(STAMP)
 	$(BIN)/python benchmarks/bench_blender.py
 
 ## model: train a heat-map CNN like the shipped one from scratch (320x240 photos, 160x120
-##        heat-maps; several hours on 2 cores; see the README for how the shipped one was made)
+##        heat-maps; several hours on 2 cores; see src/turbinefit/models/README.md for how the shipped one was made)
 model: $(STAMP)
 	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS) \
 		--widths $(MODEL_WIDTHS)

@@ -343,8 +343,6 @@ def test_bad_keyframes_are_refused_and_change_nothing() -> None:
         assert info.value.index == 1
         assert isinstance(info.value, TurbinefitError) and isinstance(info.value, ValueError)
         assert tr.num_keyframes == 1
-    with pytest.raises(KeyframeError, match="detector"):
-        tr.update(flight.timestamps[2], flight.world_T_cam[2])
     est = tr.update(flight.timestamps[2], flight.world_T_cam[2], flight.heatmaps[2])
     assert est.index == 1 and tr.num_keyframes == 2
 
@@ -360,21 +358,6 @@ def test_tracker_config_validation() -> None:
         with pytest.raises(ValueError, match=why):
             TrackerConfig(**kw)  # type: ignore[arg-type]
     assert dataclasses.replace(TrackerConfig(), window=None).window is None
-
-
-def test_an_image_goes_through_the_detector() -> None:
-    flight = small(2, seed=8)
-    seen = []
-
-    def detector(img: np.ndarray) -> np.ndarray:
-        seen.append(img.shape)
-        return np.asarray(flight.heatmaps[len(seen) - 1])
-
-    tr = Tracker(flight.camera, flight.turbine, detector=detector)
-    img = np.zeros((flight.camera.height, flight.camera.width, 3), dtype=np.uint8)
-    for k in range(2):
-        tr.update(flight.timestamps[k], flight.world_T_cam[k], image=img)
-    assert seen == [img.shape, img.shape] and tr.num_keyframes == 2
 
 
 def test_heatmap_stack_of_a_window_is_referenced_not_copied() -> None:

@@ -35,7 +35,7 @@ faster for many photos):
    with that pass's own hub), and inside the crop the tip channel becomes the larger of
    the two passes' values. Far turbines' blade tips are a pixel or two across at the
    input width; enlarged, the net finds more of them (held-out renders: recall +3 points
-   at about the same precision; "From photos" in the README). A larger of two passes only adds
+   at about the same precision; docs/cnn.md). A larger of two passes only adds
    tips: taking the zoomed pass's alone loses some that the first pass found. The other
    six channels stay those of the first pass (zoomed lines are narrower ridges, hub,
    tower top and base gain under 0.1 px); zoomed tip blobs are narrower, ``sigma_px / z``.
@@ -352,7 +352,7 @@ class DetectorPool:
     thread, detecting that many photos at once: the way to run many photos.
 
     On this 2-core machine, two single-threaded detectors working on two photos make
-    68-70 photos/s at 320 x 240 (zoom on; the README's "Measured figures"), one detector
+    68-70 photos/s at 320 x 240 (zoom on; docs/benchmarks.md), one detector
     on two threads 46-62: much of a photo's work (resizing, padding, the zoom's box and crop,
     the maps' mirror average) runs on one thread while the net's second thread waits.
     A detector's maps do not depend on how many threads it has, so the pool's maps are

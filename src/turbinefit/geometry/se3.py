@@ -1,6 +1,6 @@
 """Rotations and rigid transforms: the one pose type of the package.
 
-Conventions (fixed for the whole package, see ``docs``/README):
+Conventions (fixed for the whole package, see ``docs/method.md``):
 
 * Quaternions are **wxyz** everywhere inside turbinefit (Hamilton convention, active
   rotation). TUM files store xyzw; the conversion happens only in :mod:`turbinefit.io`.

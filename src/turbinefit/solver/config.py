@@ -208,7 +208,7 @@ PRESETS: dict[str, FitConfig] = {
     "paper-worst": FitConfig(points="interp", lines="corr"),
     # not one of the paper's: line correspondences scored along the search normal only
     # (measured on 200 simulated flights: better than paper-best in position on 66 % of
-    # them and in orientation on 89 %; see the README's experiments)
+    # them and in orientation on 89 %; see docs/experiments.md)
     "corr-normal": FitConfig(points="corr", lines="corr", line_residual="normal"),
     "pose-only": FitConfig(mode="pose"),
     "turbine-only": FitConfig(mode="turbine"),

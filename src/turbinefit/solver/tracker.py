@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -98,7 +97,7 @@ class TrackerConfig:
             whole search range; or ``same``, as the configured cost, whose interp terms are
             quadratic only within about a pixel of the heat-map's ridge, so that the prior
             of a keyframe marginalised while theta was still off carries a wrong model of
-            it (measured: see the README's tracking figures).
+            it (measured: see docs/tracking.md).
         theta_prior_release: the start-up prior is removed once the images alone inform
             every direction of theta this many times more than it does (the smallest
             generalised eigenvalue of data and prior information); None: keep it.
@@ -223,21 +222,17 @@ class Tracker:
         camera: intrinsics of the heat-maps' pixel grid.
         initial_turbine: the turbine's initial estimate (the centre of the start-up prior).
         config: see :class:`TrackerConfig`.
-        detector: turns an image into (7, H, W) heat-maps at the camera's size, for
-            :meth:`update` with ``image=`` (e.g. a wrapped
-            :class:`turbinefit.detect.HeatmapDetector`).
 
-    Every keyframe passed to :meth:`update` must have a later timestamp than the one
-    before. Heat-maps are referenced, not copied, while their keyframe is in the window.
+    The tracker takes heat-maps only: photos are turned into them before :meth:`update`
+    (e.g. by :class:`turbinefit.jobs.sources.PhotoHeatmaps`). Every keyframe passed to
+    :meth:`update` must have a later timestamp than the one before. Heat-maps are
+    referenced, not copied, while their keyframe is in the window.
     """
 
     def __init__(self, camera: PinholeCamera, initial_turbine: TurbineParams,
-                 config: TrackerConfig | None = None, *,
-                 detector: Callable[[NDArray[np.uint8]], NDArray[np.floating]] | None = None,
-                 ) -> None:
+                 config: TrackerConfig | None = None) -> None:
         self.camera = camera
         self.config = config or TrackerConfig()
-        self.detector = detector
         cfg = self.config
         self._refine_cfg = cfg.fit
         self._marg_cfg = marginal_config(cfg.fit) if cfg.marginal_terms == "corr" else cfg.fit
@@ -370,27 +365,19 @@ class Tracker:
         return poses, prob, lin, iterations
 
     def update(self, timestamp: float, world_T_cam: SE3,
-               heatmaps: NDArray[np.floating] | None = None, *,
-               image: NDArray[np.uint8] | None = None) -> TrackEstimate:
+               heatmaps: NDArray[np.floating]) -> TrackEstimate:
         """Add one keyframe and refine; returns the estimate for it.
 
         Args:
             timestamp: keyframe time [s], later than the previous keyframe's.
             world_T_cam: its GPS/IMU camera-to-world pose (the measurement).
-            heatmaps: (7, H, W) float32 heat-maps at the camera's size, or None with
-                ``image``.
-            image: the keyframe's image (H, W, 3) uint8, run through ``detector``.
+            heatmaps: (7, H, W) float32 heat-maps at the camera's size.
 
         Raises:
             KeyframeError: on input that is out of order, of the wrong shape or not finite
                 (nothing is changed).
         """
         t0 = time.perf_counter()
-        if heatmaps is None:
-            if image is None or self.detector is None:
-                raise KeyframeError(len(self._times),
-                                    "update needs heat-maps, or an image and a detector")
-            heatmaps = self.detector(image)
         maps = self._check(float(timestamp), world_T_cam, heatmaps)
         index = len(self._times)
         self._times.append(float(timestamp))

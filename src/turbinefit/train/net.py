@@ -28,7 +28,7 @@ Shape of the net (channels at each scale, heat-maps 160 x 120):
   is *added* to the logits: the head decides from 1/2-resolution features where the
   turbine is, the branch can correct thin ends (blade tips) from what the pixels show.
   Its output layer starts at zero (:func:`add_fine` gives trained weights one that
-  changes nothing until trained). Measured (README): 16 channels on the shipped net
+  changes nothing until trained). Measured (src/turbinefit/models/README.md): 16 channels on the shipped net
   raised tips recall / precision by ~2 points each for ~20 % more inference time; the
   shipped model has none.
 
