@@ -15,8 +15,9 @@ loads only what it runs.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from turbinefit._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from turbinefit.jobs.detect import DetectReport as DetectReport
@@ -31,19 +32,15 @@ if TYPE_CHECKING:
     from turbinefit.jobs.track import TrackSummary as TrackSummary
     from turbinefit.jobs.track import track_folder as track_folder
 
-_WHERE = {
-    "simulate_folder": "simulate",
-    "fit_folder": "fit", "FitReport": "fit", "FitSummary": "fit",
-    "track_folder": "track", "TrackReport": "track", "TrackSummary": "track",
-    "detect_images": "detect", "DetectReport": "detect",
-    "evaluate_labels": "evaluate", "EvaluateReport": "evaluate",
-}
+_WHERE = {name: f"turbinefit.jobs.{module}" for module, names in {
+    "simulate": ("simulate_folder",),
+    "fit": ("fit_folder", "FitReport", "FitSummary"),
+    "track": ("track_folder", "TrackReport", "TrackSummary"),
+    "detect": ("detect_images", "DetectReport"),
+    "evaluate": ("evaluate_labels", "EvaluateReport"),
+}.items() for name in names}
 
 __all__ = sorted(_WHERE)
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"turbinefit.jobs.{module}"), name)
+__getattr__ = lazy_exports(__name__, _WHERE)
