@@ -1,16 +1,13 @@
-"""Inference (onnxruntime): the shipped model on rendered photos, the detect command, the
-fit from photos, and bad input (photos, models, folders)."""
+"""Inference (turbinefit.detect, onnxruntime): the shipped model on rendered photos, photo
+sizes, tip shifts, zoom, the detector pool."""
 
 from __future__ import annotations
 
-import shutil
 import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from turbinefit.cli import main
 from turbinefit.detect import (
     TIP,
     ZOOM_MAX,
@@ -21,31 +18,8 @@ from turbinefit.detect import (
     model_input_size,
     shift_tips,
 )
-from turbinefit.eval.detection import DetectionStats, peak
+from turbinefit.eval.detection import peak
 from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo
-from turbinefit.io.images import read_image, write_png
-from turbinefit.sim.dataset import DatasetSpec, render_sample
-
-onnx = pytest.importorskip("onnx")
-
-
-@pytest.fixture(scope="module")
-def detector() -> HeatmapDetector:
-    return HeatmapDetector(threads=1)
-
-
-@pytest.fixture(scope="module")
-def samples() -> list:
-    """Held-out renders (a seed never used for training) with the hub in view."""
-    spec = DatasetSpec(1, seed=987_654)
-    out = []
-    i = 0
-    while len(out) < 6:
-        s = render_sample(spec, i)
-        if s.visible[2] and s.visible[1]:
-            out.append(s)
-        i += 1
-    return out
 
 
 def test_shipped_model_is_in_the_package() -> None:
@@ -54,9 +28,9 @@ def test_shipped_model_is_in_the_package() -> None:
     assert p.with_suffix(".npz").is_file()
 
 
-def test_shipped_model_finds_the_hub(detector: HeatmapDetector, samples: list) -> None:
+def test_shipped_model_finds_the_hub(detector: HeatmapDetector, held_out_samples: list) -> None:
     errs = []
-    for s in samples:
+    for s in held_out_samples:
         maps = detector.detect(s.image)
         assert maps.shape == (7, 240, 320) and maps.dtype == np.float32
         assert np.isfinite(maps).all() and maps.min() >= 0 and maps.max() <= 1
@@ -66,12 +40,12 @@ def test_shipped_model_finds_the_hub(detector: HeatmapDetector, samples: list) -
     assert np.median(errs) < 3.0, errs  # [px at 320 x 240]
 
 
-
 def test_shipped_model_sees_320_px_photos(detector: HeatmapDetector) -> None:
     info = detector.info
     assert (info.input_width, info.output_scale, info.stride) == (320, 2, 32)
     assert model_input_size(4000, 3000, info) == (320, 240)
     assert model_input_size(3000, 2000, info) == (320, 214)  # 3:2, height even
+
 
 def test_model_input_size_keeps_the_aspect_and_the_output_scale() -> None:
     one = ModelInfo(input_width=160)
@@ -83,9 +57,9 @@ def test_model_input_size_keeps_the_aspect_and_the_output_scale() -> None:
     assert model_input_size(4000, 10, two) == (320, 2)
 
 
-def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: list) -> None:
+def test_detect_output_has_the_photo_size(detector: HeatmapDetector, held_out_samples: list) -> None:
     """A 2x photo gives 2x heat-maps whose hub peak lands at 2x the position."""
-    s = samples[0]
+    s = held_out_samples[0]
     big = np.repeat(np.repeat(s.image, 2, axis=0), 2, axis=1)
     small = detector.detect(s.image)
     maps = detector.detect(big)
@@ -98,20 +72,20 @@ def test_detect_output_has_the_photo_size(detector: HeatmapDetector, samples: li
 
 
 def test_maps_are_resized_as_pillow_resizes_them(detector: HeatmapDetector,
-                                                samples: list) -> None:
+                                                held_out_samples: list) -> None:
     """Enlarging on onnxruntime (the shipped resize graph) gives Pillow's bilinear maps;
     shrinking (a photo narrower than the heat-maps) and mixed sizes use Pillow itself."""
     from turbinefit.heatmaps.resize import resize_maps
 
-    small = detector.detect_small(samples[1].image)
+    small = detector.detect_small(held_out_samples[1].image)
     for w, h in ((320, 240), (640, 480), (401, 133), (100, 75), (200, 90)):
-        got = detector.detect(samples[1].image, size=(w, h))
+        got = detector.detect(held_out_samples[1].image, size=(w, h))
         want = np.clip(resize_maps(small, w, h), 0.0, 1.0)
         assert got.shape == (7, h, w) and got.dtype == np.float32
         np.testing.assert_allclose(got, want, atol=1e-5)  # float32 rounding
     # the comparison can fail: nearest-neighbour enlargement is not what detect gives
     near = np.repeat(np.repeat(small, 2, axis=1), 2, axis=2)
-    assert float(np.abs(detector.detect(samples[1].image) - near).max()) > 0.01
+    assert float(np.abs(detector.detect(held_out_samples[1].image) - near).max()) > 0.01
 
 
 def test_shift_tips_moves_each_blob_along_its_blade() -> None:
@@ -144,12 +118,12 @@ def test_shift_tips_moves_each_blob_along_its_blade() -> None:
 
 
 def test_detector_shifts_the_tip_channel_by_the_calibrated_amount(
-        detector: HeatmapDetector, samples: list) -> None:
+        detector: HeatmapDetector, held_out_samples: list) -> None:
     info = detector.info
     assert detector.tip_shift == info.tip_shift_px and 0 < info.tip_shift_px < 2
     shifted = HeatmapDetector(threads=1, zoom=False)
     plain = HeatmapDetector(threads=1, tip_shift=0, zoom=False)
-    for s in samples[:3]:
+    for s in held_out_samples[:3]:
         a, b = shifted.detect_small(s.image), plain.detect_small(s.image)
         others = [0, 1, 2, 4, 5, 6]
         np.testing.assert_array_equal(a[others], b[others])
@@ -218,12 +192,12 @@ def test_zoom_finds_small_tips_again_where_they_are(size: tuple[int, int]) -> No
 
 
 def test_pool_gives_one_detectors_maps_in_order(detector: HeatmapDetector,
-                                                 samples: list) -> None:
+                                                 held_out_samples: list) -> None:
     from turbinefit.io.images import resize_image
 
-    far = np.pad(resize_image(samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
+    far = np.pad(resize_image(held_out_samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
                  mode="edge")  # zoomed: the second pass runs on the pool's threads too
-    images = [s.image for s in samples] + [far, samples[1].image[:, ::-1].copy()]
+    images = [s.image for s in held_out_samples] + [far, held_out_samples[1].image[:, ::-1].copy()]
     pool = DetectOptions().pool(workers=2)
     assert pool.workers == 2 and pool.detector.zoom and pool.detector.flip
     assert detector.zoom_box(detector.detect_small(far)) is not None
@@ -281,232 +255,3 @@ def test_pool_raises_the_first_error_in_order_and_starts_nothing_after_it() -> N
     assert next(it) == 50
     it.close()
     assert len(started) <= 1 + 2 * pool.workers
-
-
-def test_detection_metrics_of_perfect_maps(samples: list) -> None:
-    st = DetectionStats(threshold=0.5)
-    for s in samples:
-        st.add(s.target, s.target, s.points, s.visible)
-    m = st.summary()
-    assert m["hub_median_px"] < 0.3 and m["hub_detected"] == 1.0
-    assert m["iou_tower"] == pytest.approx(1.0)
-    assert m["tips_precision"] == pytest.approx(1.0) or np.isnan(m["tips_precision"])
-
-
-def test_detect_cli(tmp_path: Path, samples: list, detector: HeatmapDetector,
-                    capsys: pytest.CaptureFixture[str]) -> None:
-    photos = tmp_path / "photos"
-    photos.mkdir()
-    for k, s in enumerate(samples[:3]):
-        write_png(photos / f"img{k}.png", s.image)
-    from PIL import Image
-
-    Image.fromarray(samples[3].image).save(photos / "img3.jpg", quality=90)
-    out = tmp_path / "det"
-    assert main(["detect", str(photos), "--out", str(out), "--quiet", "--threads", "1"]) == 0
-    names = sorted(p.name for p in out.iterdir())
-    assert names == sorted([f"img{k}.{e}" for k in range(4) for e in ("npy", "png")])
-    maps = np.load(out / "img0.npy")
-    assert maps.shape == (7, 240, 320) and maps.dtype == np.float32
-    assert read_image(out / "img0.png").shape == (240, 320, 3)
-    # again without --overwrite: refused; with it: replaced
-    assert main(["detect", str(photos), "--out", str(out), "--quiet"]) == 2
-    assert main(["detect", str(photos / "img0.png"), "--out", str(out), "--quiet",
-                 "--overwrite"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["img0.npy", "img0.png"]
-    # --no-flip: the net once per photo, as HeatmapDetector(flip=False); by default the
-    # shipped model's metadata asks for flip averaging, which gives other maps
-    plain = tmp_path / "plain"
-    assert main(["detect", str(photos / "img0.png"), "--out", str(plain), "--quiet",
-                 "--no-flip"]) == 0
-    img = read_image(photos / "img0.png")
-    assert detector.flip
-    np.testing.assert_allclose(np.load(plain / "img0.npy"),
-                               HeatmapDetector(threads=1, flip=False).detect(img), atol=1e-5)
-    np.testing.assert_allclose(np.load(out / "img0.npy"), detector.detect(img), atol=1e-5)
-    assert np.abs(np.load(plain / "img0.npy") - np.load(out / "img0.npy")).max() > 1e-3
-    # --tip-shift 0: the net's own tip channel, as HeatmapDetector(tip_shift=0)
-    own = tmp_path / "own"
-    assert main(["detect", str(photos / "img0.png"), "--out", str(own), "--quiet",
-                 "--tip-shift", "0"]) == 0
-    np.testing.assert_allclose(np.load(own / "img0.npy"),
-                               HeatmapDetector(threads=1, tip_shift=0).detect(img), atol=1e-5)
-    assert np.abs(np.load(own / "img0.npy")[3] - np.load(out / "img0.npy")[3]).max() > 1e-3
-    # --no-zoom: no second pass on small turbines, as HeatmapDetector(zoom=False); a far
-    # view (a render shrunk to half size amid its own sky) is zoomed by default
-    from turbinefit.io.images import resize_image
-
-    far = np.pad(resize_image(samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
-                 mode="edge")
-    write_png(photos / "far.png", far)
-    unzoomed = HeatmapDetector(threads=1, zoom=False)
-    assert detector.zoom and detector.zoom_box(unzoomed.detect_small(far)) is not None
-    for flag, det in (([], detector), (["--no-zoom"], unzoomed)):
-        d = tmp_path / f"far{len(flag)}"
-        assert main(["detect", str(photos / "far.png"), "--out", str(d), "--quiet",
-                     *flag]) == 0
-        np.testing.assert_allclose(np.load(d / "far.npy"), det.detect(far), atol=1e-5)
-    assert np.abs(np.load(tmp_path / "far0" / "far.npy")[3]
-                  - np.load(tmp_path / "far1" / "far.npy")[3]).max() > 1e-3
-
-
-def _one_line_error(capsys: pytest.CaptureFixture[str], *words: str) -> str:
-    err = capsys.readouterr().err
-    assert err.startswith("turbinefit: error: "), err
-    assert len(err.strip().splitlines()) == 1, err
-    for w in words:
-        assert w in err, err
-    return err
-
-
-def _tiny_model(path: Path, out_channels: int = 7, opset: int = 17,
-                meta: dict[str, str] | None = None, fixed: bool = False) -> Path:
-    from onnx import TensorProto, helper, numpy_helper
-
-    w = numpy_helper.from_array(np.zeros((out_channels, 3, 1, 1), np.float32), "w")
-    dims = [1, 3, 128, 160] if fixed else ["b", 3, "h", "w"]
-    odims = [1, out_channels, 128, 160] if fixed else ["b", out_channels, "h", "w"]
-    graph = helper.make_graph(
-        [helper.make_node("Conv", ["image", "w"], ["c"]), helper.make_node("Sigmoid", ["c"], ["y"])],
-        "g", [helper.make_tensor_value_info("image", TensorProto.FLOAT, dims)],
-        [helper.make_tensor_value_info("y", TensorProto.FLOAT, odims)], [w])
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)])
-    model.ir_version = 8
-    for key, value in (meta or {}).items():
-        e = model.metadata_props.add()
-        e.key, e.value = key, value
-    path.write_bytes(model.SerializeToString())
-    return path
-
-
-def test_detect_bad_input(tmp_path: Path, samples: list, capsys: pytest.CaptureFixture[str]) -> None:
-    good = tmp_path / "good.png"
-    write_png(good, samples[0].image)
-    out = tmp_path / "out"
-    # a non-image file, a truncated PNG
-    (tmp_path / "notes.png").write_text("hello")
-    assert main(["detect", str(good), str(tmp_path / "notes.png"), "--out", str(out)]) == 2
-    _one_line_error(capsys, "notes.png", "not an image")
-    assert not out.exists()
-    trunc = tmp_path / "trunc.png"
-    trunc.write_bytes(good.read_bytes()[:200])
-    assert main(["detect", str(trunc), "--out", str(out)]) == 2
-    _one_line_error(capsys, "trunc.png")
-    assert not out.exists()
-    # found by a worker of the pool amid good photos: the same one error, nothing written
-    for k in range(3):
-        shutil.copy(good, tmp_path / f"good{k}.png")
-    assert main(["detect", *(str(tmp_path / f"good{k}.png") for k in range(3)), str(trunc),
-                 "--out", str(out), "--threads", "2"]) == 2
-    _one_line_error(capsys, "trunc.png")
-    assert not out.exists()
-    # an empty folder, a missing file
-    (tmp_path / "empty").mkdir()
-    assert main(["detect", str(tmp_path / "empty"), "--out", str(out)]) == 2
-    _one_line_error(capsys, "empty", "no image files")
-    assert main(["detect", str(tmp_path / "nope.jpg"), "--out", str(out)]) == 2
-    _one_line_error(capsys, "nope.jpg")
-    # two photos with the same stem
-    (tmp_path / "b").mkdir()
-    shutil.copy(good, tmp_path / "b" / "good.png")
-    assert main(["detect", str(good), str(tmp_path / "b"), "--out", str(out)]) == 2
-    _one_line_error(capsys, "share the name")
-    # models: not ONNX, wrong output shape, unsupported opset (file and metadata), a
-    # metadata flag that is not one, fixed size
-    (tmp_path / "junk.onnx").write_bytes(b"\x00\x01junk")
-    cases = {
-        "junk.onnx": "not a usable ONNX model",
-        _tiny_model(tmp_path / "c5.onnx", out_channels=5).name: "output has shape",
-        _tiny_model(tmp_path / "op99.onnx", opset=99).name: "not a usable ONNX model",
-        _tiny_model(tmp_path / "meta.onnx", meta={"turbinefit.opset": "99"}).name: "opset 99",
-        _tiny_model(tmp_path / "flip.onnx", meta={"turbinefit.flip": "yes"}).name:
-            "turbinefit.flip='yes' is not a valid flag",
-        _tiny_model(tmp_path / "fixed.onnx", fixed=True).name: "fixed image size",
-        _tiny_model(tmp_path / "shift.onnx", meta={"turbinefit.tip_shift_px": "25"}).name:
-            "out of range",
-        _tiny_model(tmp_path / "shiftx.onnx", meta={"turbinefit.tip_shift_px": "far"}).name:
-            "turbinefit.tip_shift_px='far' is not a valid float",
-        "missing.onnx": "model file not found",
-    }
-    for name, words in cases.items():
-        assert main(["detect", str(good), "--out", str(out), "--model", str(tmp_path / name)]) == 2
-        _one_line_error(capsys, name, words)
-        assert not out.exists()
-    # the tiny 7-channel model is a valid (if useless) model
-    assert main(["detect", str(good), "--out", str(out), "--quiet",
-                 "--model", str(_tiny_model(tmp_path / "ok.onnx"))]) == 0
-
-
-def test_simulate_images_and_fit_from_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    flight = tmp_path / "flight"
-    assert main(["simulate", str(flight), "--keyframes", "6", "--seed", "2", "--width", "160",
-                 "--height", "120", "--images", "--quiet"]) == 0
-    photos = sorted((flight / "images").iterdir())
-    assert len(photos) == 6 and photos[0].name == "0.000000.png"
-    assert read_image(photos[0]).shape == (120, 160, 3)
-    # no heat-maps: fit detects them from the photos
-    shutil.rmtree(flight / "heatmaps")
-    out = tmp_path / "fit"
-    assert main(["fit", str(flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
-    import json
-
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["heatmaps"].startswith("detected from images/")
-    assert not (flight / "heatmaps").exists()
-    # --no-flip reaches the detector: other heat-maps, another (if close) fit
-    assert main(["fit", str(flight), "--out", str(tmp_path / "fit_nf"), "--no-plots",
-                 "--quiet", "--no-flip"]) == 0
-    assert (tmp_path / "fit_nf" / "turbine.yaml").read_text() != \
-        (out / "turbine.yaml").read_text()
-    # so does --tip-shift (0: the net's own tip channel)
-    assert main(["fit", str(flight), "--out", str(tmp_path / "fit_ts"), "--no-plots",
-                 "--quiet", "--tip-shift", "0"]) == 0
-    assert (tmp_path / "fit_ts" / "turbine.yaml").read_text() != \
-        (out / "turbine.yaml").read_text()
-    # a photo missing / of the wrong size: one clear error, nothing written
-    photos[3].unlink()
-    assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
-    _one_line_error(capsys, "keyframe 3")
-    write_png(photos[3], np.zeros((60, 80, 3), np.uint8))
-    assert main(["fit", str(flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
-    _one_line_error(capsys, "80x60", "camera.yaml")
-    assert not (tmp_path / "fit2").exists()
-
-
-def test_track_from_photos_detects_inside_each_update(tmp_path: Path,
-                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    flight = tmp_path / "flight"
-    assert main(["simulate", str(flight), "--keyframes", "6", "--seed", "2", "--width", "160",
-                 "--height", "120", "--images", "--quiet"]) == 0
-    shutil.rmtree(flight / "heatmaps")
-    out = tmp_path / "track"
-    assert main(["track", str(flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
-    import json
-
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["heatmaps"].startswith("detected from images/")
-    assert summary["num_keyframes"] == 6
-    assert not (flight / "heatmaps").exists()
-    # a photo of the wrong size: one clear error naming it, nothing written
-    photo = flight / "images" / "3.000000.png"
-    write_png(photo, np.zeros((60, 80, 3), np.uint8))
-    assert main(["track", str(flight), "--out", str(tmp_path / "t2"), "--quiet"]) == 2
-    _one_line_error(capsys, "3.000000.png", "80x60", "camera.yaml")
-    assert not (tmp_path / "t2").exists()
-
-
-def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
-    from turbinefit.io.flight_folder import read_flight, read_flight_folder
-    from turbinefit.jobs.sources import FIT_DETECT_WIDTH, PhotoHeatmaps
-
-    flight = tmp_path / "f"
-    assert main(["simulate", str(flight), "--keyframes", "3", "--seed", "1", "--width", "640",
-                 "--height", "480", "--images", "--quiet"]) == 0
-    folder = read_flight_folder(flight)
-    source = PhotoHeatmaps(folder, threads=1)
-    f = folder.flight(source.stack(), source.camera)
-    assert (f.camera.width, f.camera.height) == (FIT_DETECT_WIDTH, 240)
-    assert (f.heatmaps.height, f.heatmaps.width) == (240, FIT_DETECT_WIDTH)
-    full = read_flight(flight)
-    assert f.camera.fx == pytest.approx(full.camera.fx / 2)
-    assert f.camera.cx == pytest.approx((full.camera.cx + 0.5) / 2 - 0.5)

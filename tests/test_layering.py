@@ -14,8 +14,12 @@ import pytest
 import turbinefit
 
 PACKAGE = Path(turbinefit.__file__).parent
+
+
 #: The core: geometry, the turbine model, heat-maps, costs and solver (and what they share).
 CORE = ("geometry", "turbine", "heatmaps", "costs", "solver", "flight", "errors", "_native")
+
+
 #: What the core must never import, even inside a function.
 ABOVE_CORE = ("io", "sim", "plots", "detect", "train", "cli", "jobs", "eval", "experiments")
 

@@ -3,11 +3,11 @@ correspondences, projections and linear solves, on flights with faults and disto
 
 import numpy as np
 import pytest
+from support import simulated_flight
 
 from turbinefit import _native
 from turbinefit.costs.projection import project_points
 from turbinefit.heatmaps import HeatmapStack, NonFiniteHeatmapError
-from turbinefit.sim.scenario import preset, simulate_flight
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.linalg import solve_block_tridiagonal
 from turbinefit.solver.problem import FitProblem
@@ -27,7 +27,7 @@ def both(monkeypatch, fn):
 
 @pytest.fixture(scope="module", params=["hard", "distorted"])
 def flight(request):
-    return simulate_flight(preset(request.param, n_keyframes=12, seed=3))
+    return simulated_flight(12, request.param, seed=3, width=320)
 
 
 @pytest.mark.parametrize("kw", [

@@ -1,0 +1,105 @@
+"""The command line as a whole: ``--version``, ``--help`` of every command, usage errors, and
+the installed entry points (run in a subprocess for the real exit status)."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from support import FIT_OUTPUTS, assert_one_line_error, entries
+
+import turbinefit
+from turbinefit.cli import build_parser, main
+
+
+def test_entry_point_script_fits(sim_flight_dir: Path, tmp_path: Path) -> None:
+    script = Path(sys.executable).with_name("turbinefit")
+    if not script.exists():
+        found = shutil.which("turbinefit")
+        if found is None:
+            pytest.skip("turbinefit script not installed")
+        script = Path(found)
+    out_dir = tmp_path / "fit"
+    proc = subprocess.run([str(script), "fit", str(sim_flight_dir), "--out", str(out_dir), "--no-plots",
+                           "--quiet", "--max-iterations", "2"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (proc.stdout, proc.stderr) == ("", "")
+    assert set(entries(out_dir)) == FIT_OUTPUTS
+
+
+def test_module_entry_point_bad_input_exit_status(flight_copy: Path, tmp_path: Path) -> None:
+    (flight_copy / "camera.yaml").unlink()
+    out_dir = tmp_path / "fit"
+    proc = subprocess.run([sys.executable, "-m", "turbinefit.cli", "fit", str(flight_copy), "--out",
+                           str(out_dir)], capture_output=True, text=True, timeout=120)
+    assert_one_line_error(proc.returncode, proc.stdout, proc.stderr, r"camera\.yaml")
+    assert not out_dir.exists()
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"turbinefit {turbinefit.__version__}"
+
+
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return {"": parser, **action.choices}
+    raise AssertionError("no sub-commands")
+
+
+@pytest.mark.parametrize(("command", "must_mention"), [
+    ("", ["simulate", "fit", "--version", "camera.yaml", "keyframes.txt", "odometry.txt",
+          "turbine.yaml", "heatmaps/", "groundtruth.txt"]),
+    ("simulate", ["OUT_DIR", "--keyframes", "--seed", "--preset", "--width", "--height",
+                  "--overwrite", "--quiet", "--list-presets", "--second-turbine"]),
+    ("fit", ["FLIGHT_DIR", "--out", "--mode", "--points", "--lines", "--config", "--preset",
+             "--no-plots", "--overwrite", "--quiet", "--max-iterations", "joint", "interp",
+             "--pair-frame", "--no-warmup", "align", "match"]),
+])
+def test_help(command: str, must_mention: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    argv = [command, "--help"] if command else ["--help"]
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert text.startswith("usage: turbinefit")
+    for word in must_mention:
+        assert word in text, word
+    # and every option the parser knows of
+    parser = _subparsers()[command]
+    for action in parser._actions:
+        for opt in action.option_strings:
+            assert opt in text, opt
+
+
+@pytest.mark.parametrize(("argv", "pattern"), [
+    (["fit", "somewhere"], r"--out"),
+    (["fit", "somewhere", "--out", "x", "--mode", "bogus"], r"invalid choice: 'bogus'"),
+    (["frobnicate"], r"invalid choice"),
+    ([], r"COMMAND"),
+    (["simulate", "x", "--seed", "-1"], r"--seed: must be a non-negative whole number"),
+    (["simulate", "x", "--seed", "1.5"], r"--seed: expected a whole number"),
+    (["fit", "somewhere", "--out", "x", "--preset", "all-corr", "--config", "c.yaml"],
+     r"not allowed with argument"),
+    (["fit", "somewhere", "--out", "x", "--pair-frame", "world"], r"invalid choice: 'world'"),
+])
+def test_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
+                      capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: turbinefit")
+    assert re.search(pattern, err.splitlines()[-1]), err
+    assert entries(tmp_path) == []

@@ -1,0 +1,148 @@
+"""``turbinefit track``: causal and final estimates, latency, options, bad input, output
+folders, and tracking from photos."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support import (
+    N_KEYFRAMES,
+    assert_one_line_error,
+    assert_valid_png,
+    digest,
+    entries,
+    heatmap,
+    one_line_error,
+    poses_array,
+    run,
+)
+
+from turbinefit.cli import main
+from turbinefit.io import read_turbine_yaml
+from turbinefit.io.images import write_png
+from turbinefit.solver.config import FitConfig
+
+TRACK_OUTPUTS = {"causal.txt", "keyframes.txt", "turbine.yaml", "latency.csv", "config.yaml",
+                 "summary.json"}
+
+
+TRACK_PLOTS = {"latency.png", "errors.png", "scene.png"}
+
+
+def test_track_writes_causal_and_final_estimates(sim_flight_dir: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    before = digest(sim_flight_dir)
+    out_dir = tmp_path / "track"
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(out_dir), "--window", "5")
+    assert rc == 0, err
+    assert set(entries(out_dir)) == TRACK_OUTPUTS | TRACK_PLOTS
+    assert entries(tmp_path) == ["track"] and digest(sim_flight_dir) == before
+    for name in TRACK_PLOTS:
+        assert_valid_png(out_dir / name)
+    t_in, _ = poses_array(sim_flight_dir / "keyframes.txt")
+    for name in ("causal.txt", "keyframes.txt"):
+        t, p = poses_array(out_dir / name)
+        np.testing.assert_array_equal(t, t_in)
+        assert np.isfinite(p).all() and np.allclose(np.linalg.norm(p[:, :4], axis=1), 1.0)
+    # the causal estimate of the last keyframe is its final one; earlier ones moved on
+    _, causal = poses_array(out_dir / "causal.txt")
+    _, final = poses_array(out_dir / "keyframes.txt")
+    np.testing.assert_allclose(causal[-1], final[-1], atol=1e-9)
+    assert not np.allclose(causal[1:-1], final[1:-1], atol=1e-6)
+    # latency.csv: one row per keyframe, the timestamps of the flight
+    lines = (out_dir / "latency.csv").read_text().splitlines()
+    assert lines[0] == "timestamp,latency_ms" and len(lines) == N_KEYFRAMES + 1
+    rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]])
+    np.testing.assert_allclose(rows[:, 0], t_in, atol=1e-6)
+    assert np.all(rows[:, 1] > 0) and np.all(np.isfinite(rows[:, 1]))
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["num_keyframes"] == N_KEYFRAMES
+    assert summary["config"]["tracker"]["window"] == 5
+    assert FitConfig.from_dict(summary["config"]["fit"]) == FitConfig()
+    assert summary["latency"]["median_ms"] == pytest.approx(float(np.median(rows[:, 1])), abs=1e-3)
+    acc = summary["accuracy"]
+    assert acc["final"]["model_point_error_m"] < acc["initial"]["model_point_error_m"]
+    th = read_turbine_yaml(out_dir / "turbine.yaml")
+    assert th.to_dict() == pytest.approx(summary["turbine"]["final"], rel=1e-12)
+    assert f"tracked {N_KEYFRAMES} keyframes" in out and "99th percentile" in out
+    assert out.rstrip().endswith(f"wrote {out_dir}")
+    # the status line goes to stderr only when it is a terminal: nothing here
+    assert "Traceback" not in err
+
+
+def test_track_unbounded_window_and_options(sim_flight_dir: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "track"
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(out_dir), "--window", "0",
+                       "--no-prior", "--points", "interp", "--no-plots", "--quiet")
+    assert rc == 0, err
+    assert out == "" and set(entries(out_dir)) == TRACK_OUTPUTS
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["config"]["tracker"]["window"] is None
+    assert summary["config"]["tracker"]["theta_sigma"] is None
+    assert summary["config"]["fit"]["points"] == "interp"
+
+
+@pytest.mark.parametrize("args, patterns", [
+    (["--window", "1"], ["--window", ">= 2"]),
+    (["--preset", "turbine-only"], ["mode", "joint or pose"]),
+    (["--preset", "nope"], ["unknown preset"]),
+])
+def test_track_bad_options(args: list[str], patterns: list[str], sim_flight_dir: Path,
+                           tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "track"
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(out_dir), *args)
+    assert_one_line_error(rc, out, err, *patterns)
+    assert not out_dir.exists()
+
+
+def test_track_bad_heatmap_names_the_file(flight_copy: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    bad = np.load(heatmap(flight_copy, 4))
+    bad[2, 3, 3] = np.nan
+    np.save(heatmap(flight_copy, 4), bad)
+    out_dir = tmp_path / "track"
+    rc, out, err = run(capsys, "track", str(flight_copy), "--out", str(out_dir))
+    assert_one_line_error(rc, out, err, re.escape("4.000000.npy"), "NaN")
+    assert not out_dir.exists() and entries(tmp_path) == ["flight"]
+
+
+def test_track_refuses_to_write_into_its_input_or_over_other_files(
+        sim_flight_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(sim_flight_dir / "out"))
+    assert_one_line_error(rc, out, err, "inside the input")
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me\n")
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(other), "--overwrite")
+    assert_one_line_error(rc, out, err, "notes.txt", "not an output of turbinefit track")
+    assert (other / "notes.txt").read_text() == "keep me\n"
+    # its own output is replaced with --overwrite
+    mine = tmp_path / "mine"
+    assert run(capsys, "track", str(sim_flight_dir), "--out", str(mine), "--no-plots")[0] == 0
+    rc, out, err = run(capsys, "track", str(sim_flight_dir), "--out", str(mine))
+    assert_one_line_error(rc, out, err, "--overwrite")
+    assert run(capsys, "track", str(sim_flight_dir), "--out", str(mine), "--overwrite",
+               "--no-plots")[0] == 0
+
+
+def test_track_from_photos_detects_inside_each_update(photo_flight: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    shutil.rmtree(photo_flight / "heatmaps")
+    out = tmp_path / "track"
+    assert main(["track", str(photo_flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["heatmaps"].startswith("detected from images/")
+    assert summary["num_keyframes"] == 6
+    assert not (photo_flight / "heatmaps").exists()
+    # a photo of the wrong size: one clear error naming it, nothing written
+    photo = photo_flight / "images" / "3.000000.png"
+    write_png(photo, np.zeros((60, 80, 3), np.uint8))
+    assert main(["track", str(photo_flight), "--out", str(tmp_path / "t2"), "--quiet"]) == 2
+    one_line_error(capsys, "3.000000.png", "80x60", "camera.yaml")
+    assert not (tmp_path / "t2").exists()

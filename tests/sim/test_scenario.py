@@ -1,0 +1,75 @@
+"""Simulated flights (turbinefit.sim.scenario): determinism, contents per configuration,
+presets, a second turbine."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from support import NRE, simulated_flight
+
+from turbinefit.geometry.se3 import pose_errors
+from turbinefit.sim import PRESETS, simulate_flight
+from turbinefit.sim.turbines import neighbour_turbine
+from turbinefit.turbine.model import param_errors
+
+
+def test_simulation_is_deterministic_and_seed_dependent():
+    a = simulated_flight(12, seed=3, width=320)
+    b = simulated_flight(12, seed=3, width=320)
+    c = simulated_flight(12, seed=4, width=320)
+    ha, hb, hc = (np.stack([f.heatmaps[k] for k in range(12)]) for f in (a, b, c))
+    assert ha.dtype == np.float32 and ha.shape == (12, 7, 240, 320)
+    assert np.array_equal(ha, hb)
+    assert np.array_equal(a.world_T_cam.wxyz_xyz, b.world_T_cam.wxyz_xyz)
+    assert np.array_equal(a.gt_world_T_cam.wxyz_xyz, b.gt_world_T_cam.wxyz_xyz)
+    assert a.turbine == b.turbine and a.gt_turbine == b.gt_turbine
+    np.testing.assert_array_equal(a.timestamps, b.timestamps)
+    assert not np.array_equal(ha, hc)
+    assert not np.allclose(a.gt_world_T_cam.wxyz_xyz, c.gt_world_T_cam.wxyz_xyz)
+    assert a.gt_turbine != c.gt_turbine
+
+
+def test_flight_contents_follow_the_config():
+    f = simulated_flight(12, seed=5, width=320)
+    assert f.camera.fx == pytest.approx(160.0 / math.tan(math.radians(35.0)))
+    assert (f.camera.cx, f.camera.cy) == (159.5, 119.5)
+    assert f.odometry is None and f.has_ground_truth
+    np.testing.assert_allclose(np.diff(f.timestamps), 1.0)
+    # heat-maps come from the ground truth, the initial estimates are perturbed
+    dpos, _ = pose_errors(f.world_T_cam, f.gt_world_T_cam)
+    assert dpos[0] == 0.0 and dpos[1:].max() > 0.0
+    assert np.any(param_errors(f.turbine, f.gt_turbine) != 0.0)
+    exact = simulate_flight(replace(PRESETS["exact"], n_keyframes=12, seed=5))
+    assert exact.turbine == exact.gt_turbine
+    np.testing.assert_array_equal(exact.world_T_cam.wxyz_xyz, exact.gt_world_T_cam.wxyz_xyz)
+    # same seed: the same truth whatever the noise settings
+    assert exact.gt_turbine == f.gt_turbine
+    np.testing.assert_array_equal(exact.gt_world_T_cam.wxyz_xyz, f.gt_world_T_cam.wxyz_xyz)
+    for k in range(12):
+        h = f.heatmaps[k]
+        assert np.all(np.isfinite(h)) and h.min() >= 0.0 and h.max() <= 1.0
+
+
+def test_presets_all_run():
+    for name, cfg in PRESETS.items():
+        f = simulate_flight(replace(cfg, n_keyframes=3))
+        assert f.num_keyframes == 3, name
+
+
+def test_second_turbine_adds_responses_far_away():
+    base = replace(PRESETS["noiseless"], n_keyframes=40, seed=2)
+    one = simulate_flight(base)
+    two = simulate_flight(replace(base, second_turbine=True))
+    np.testing.assert_array_equal(one.gt_world_T_cam.wxyz_xyz, two.gt_world_T_cam.wxyz_xyz)
+    h1 = np.stack([one.heatmaps[k] for k in range(40)])
+    h2 = np.stack([two.heatmaps[k] for k in range(40)])
+    assert np.all(h2 >= h1)  # max-composited on top
+    assert np.count_nonzero((h2 - h1).max(axis=(1, 2, 3)) > 0.5) >= 2
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        other = neighbour_turbine(NRE, rng)
+        d = math.hypot(other.base_x - NRE.base_x, other.base_y - NRE.base_y)
+        assert 150.0 <= d <= 400.0
