@@ -243,3 +243,30 @@ def test_simulate_images_and_fit_from_them(photo_flight: Path, tmp_path: Path,
     assert main(["fit", str(photo_flight), "--out", str(tmp_path / "fit2"), "--quiet"]) == 2
     one_line_error(capsys, "80x60", "camera.yaml")
     assert not (tmp_path / "fit2").exists()
+
+
+def test_fit_defaults_follow_the_heatmap_source(photo_flight_dir: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """With no --config or --preset, fit starts from the options measured best for its
+    kind of heat-maps (photos: PHOTO_FIT_DEFAULTS), says so, and records them; options
+    given on the command line still win, and a preset replaces the defaults."""
+    from turbinefit.jobs.sources import PHOTO_FIT_DEFAULTS
+
+    def run_fit(name: str, *extra: str) -> tuple[dict, dict, str]:
+        out = tmp_path / name
+        assert main(["fit", str(photo_flight_dir), "--out", str(out), "--no-plots",
+                     "--max-iterations", "2", *extra]) == 0
+        text = capsys.readouterr().out
+        return (yaml.safe_load((out / "config.yaml").read_text()),
+                json.loads((out / "summary.json").read_text()), text)
+
+    cfg, summary, text = run_fit("files")
+    assert (cfg["points"], cfg["robust"]) == ("corr", "huber")  # FitConfig's own defaults
+    assert summary["defaults"] == "heat-map files" and "defaults for heat-map files" in text
+    cfg, summary, text = run_fit("photos", "--from-images")
+    assert {k: cfg[k] for k in PHOTO_FIT_DEFAULTS} == dict(PHOTO_FIT_DEFAULTS)
+    assert "detected from photos" in summary["defaults"] and "detected from photos" in text
+    cfg, summary, _ = run_fit("photos_corr", "--from-images", "--points", "corr")
+    assert (cfg["points"], cfg["robust"]) == ("corr", PHOTO_FIT_DEFAULTS["robust"])
+    cfg, summary, _ = run_fit("photos_preset", "--from-images", "--preset", "paper-best")
+    assert (cfg["points"], cfg["robust"]) == ("corr", "huber") and "defaults" not in summary

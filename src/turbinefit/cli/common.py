@@ -251,22 +251,33 @@ def add_flight_job_options(parser: argparse.ArgumentParser, presets: str,
     add_fit_options(parser, batch=batch)
 
 
-def resolve_fit_config(args: argparse.Namespace) -> FitConfig:
-    """The FitConfig of --config or --preset (default: FitConfig()) with the command-line
-    fit options on top."""
+def fit_base_and_options(args: argparse.Namespace) -> tuple[FitConfig | None, dict[str, Any]]:
+    """The FitConfig of --config or --preset (None when neither is given: the job then
+    starts from the defaults for its kind of heat-maps) and the fit options given on the
+    command line, to set on top."""
     from turbinefit.errors import InputError
     from turbinefit.io.fit_config import read_fit_config
-    from turbinefit.solver.config import PRESETS, FitConfig
+    from turbinefit.solver.config import PRESETS
 
-    cfg = FitConfig()
+    base = None
     if args.config is not None:
-        cfg = read_fit_config(args.config)
+        base = read_fit_config(args.config)
     if args.preset is not None:
         if args.preset not in PRESETS:
             raise InputError(f"unknown preset {args.preset!r} (choose from "
                              f"{', '.join(PRESETS)})", field="--preset")
-        cfg = PRESETS[args.preset]
+        base = PRESETS[args.preset]
+    return base, fit_option_names(args)
+
+
+def resolve_fit_config(args: argparse.Namespace) -> FitConfig:
+    """The FitConfig of --config or --preset (default: FitConfig()) with the command-line
+    fit options on top."""
+    from turbinefit.errors import InputError
+    from turbinefit.solver.config import FitConfig
+
+    base, options = fit_base_and_options(args)
     try:
-        return dataclasses.replace(cfg, **fit_option_names(args))
+        return dataclasses.replace(base or FitConfig(), **options)
     except ValueError as exc:
         raise InputError(str(exc), field="fit options") from None

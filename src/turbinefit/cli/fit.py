@@ -12,7 +12,7 @@ from turbinefit.cli.common import (
     add_flight_job_options,
     add_photo_options,
     detect_options,
-    resolve_fit_config,
+    fit_base_and_options,
     turbine_line,
 )
 
@@ -49,7 +49,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from turbinefit.jobs.fit import FitReport, fit_folder
 
-    cfg = resolve_fit_config(args)
+    base, options = fit_base_and_options(args)
     bar = None
     progress = None
     if not args.quiet:
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         report: FitReport = fit_folder(
-            args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
+            args.flight_dir, args.out_dir, base, options=options, plots=not args.no_plots,
             overwrite=args.overwrite, progress=progress, config_path=args.config,
             from_images=args.from_images, model=args.model, detect_progress=not args.quiet,
             detect_options=detect_options(args))
@@ -79,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"fitted {len(r.world_T_cam)} keyframes in {t['solve']:.2f} s "
               f"(load {t['load']:.2f} s, total {t['total']:.2f} s): {r.iterations} iterations, "
               f"{r.rounds} round(s), {r.termination}")
+        if report.summary.defaults is not None:
+            print(f"options: the defaults for {report.summary.defaults}")
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
         print(turbine_line(r.turbine))
         if report.before is not None and report.after is not None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,7 +26,7 @@ from turbinefit.io.flight_folder import read_flight_folder
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.outputs import FIT_OUTPUTS, flight_inputs, plot_error, summary_json
-from turbinefit.jobs.sources import open_heatmaps
+from turbinefit.jobs.sources import fit_config_for, open_heatmaps
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
@@ -48,6 +48,7 @@ class FitSummary:
         num_keyframes: keyframes fitted.
         heatmap_size: (width, height) of the heat-maps fitted [px].
         heatmaps: where the heat-maps came from.
+        defaults: which defaults the options started from (None: a --config file or preset).
         result: the solver's result (costs, iterations, rounds, history, config).
         initial_turbine: the flight's initial turbine.
         before, after: accuracy of the initial and fitted estimates (None without ground
@@ -64,6 +65,7 @@ class FitSummary:
     before: Accuracy | None = None
     after: Accuracy | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    defaults: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         r = self.result
@@ -96,6 +98,8 @@ class FitSummary:
         if self.before is not None and self.after is not None:
             out["accuracy"] = {"before": self.before.to_dict(), "after": self.after.to_dict()}
         out["heatmaps"] = self.heatmaps
+        if self.defaults is not None:
+            out["defaults"] = self.defaults
         return out
 
 
@@ -132,6 +136,7 @@ def fit_folder(
     out_dir: str | os.PathLike[str],
     config: FitConfig | None = None,
     *,
+    options: Mapping[str, Any] | None = None,
     plots: bool = True,
     overwrite: bool = False,
     progress: Callable[[IterationRecord], None] | None = None,
@@ -157,8 +162,11 @@ def fit_folder(
     ``flight_dir/images/`` (ONNX ``model`` or the shipped one, with ``detect_options``)
     when ``from_images`` is True, or when it is None and the flight has photos but no
     ``heatmaps/`` (:func:`turbinefit.jobs.sources.open_heatmaps`).
+
+    Options: ``config`` (None = the defaults for the kind of heat-maps,
+    :func:`turbinefit.jobs.sources.fit_config_for`), with the FitConfig fields of
+    ``options`` set on top; the options used are written to ``config.yaml``.
     """
-    cfg = config or FitConfig()
     flight_dir = Path(flight_dir)
     out_dir = Path(out_dir)
     FIT_OUTPUTS.check(out_dir, flight_inputs(flight_dir, None if config_path is None
@@ -167,6 +175,7 @@ def fit_folder(
     t0 = time.perf_counter()
     folder = read_flight_folder(flight_dir)
     source = open_heatmaps(folder, from_images, model, detect_options)
+    cfg = fit_config_for(source, config, options)
     flight = folder.flight(source.stack(progress=detect_progress), source.camera)
     timings["load"] = time.perf_counter() - t0
 
@@ -179,7 +188,8 @@ def fit_folder(
 
     summary = FitSummary(str(flight_dir), flight.num_keyframes,
                          (flight.camera.width, flight.camera.height), source.description,
-                         result, flight.turbine, timings=timings)
+                         result, flight.turbine, timings=timings,
+                         defaults=None if config is not None else source.defaults_name)
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
         summary.before = accuracy(flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
                                   flight.gt_turbine, cfg.geometry)

@@ -12,9 +12,12 @@ flight folder as the commands do.
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,11 +30,18 @@ from turbinefit.io.images import check_image, read_image
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
+    from turbinefit.solver.config import FitConfig
 
 F32Maps = NDArray[np.float32]
 
 #: Heat-maps detected for a fit are at most this wide [px]; a larger camera is resized.
 FIT_DETECT_WIDTH = 320
+
+#: The fit options that measured best on heat-maps the CNN detects in photos (the
+#: interpolated point cost and a Cauchy loss: the net's peaks carry biases of about a pixel
+#: that correspondences would follow; ``benchmarks/bench_defaults.py``).
+PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({"points": "interp",
+                                                          "robust": "cauchy"})
 
 
 class HeatmapSource(Protocol):
@@ -40,10 +50,17 @@ class HeatmapSource(Protocol):
     Attributes:
         camera: intrinsics of the maps' pixel grid (the photos' camera, or resized).
         description: what the maps are, for summaries (e.g. ``heatmaps/``).
+        fit_defaults: the fit options that measured best on maps of this kind
+            (:class:`~turbinefit.solver.config.FitConfig` fields set over its defaults;
+            ``benchmarks/bench_defaults.py`` measures them): what ``fit`` and ``track``
+            use when no ``--config`` or ``--preset`` is given.
+        defaults_name: what those defaults are for, in a few words.
     """
 
     camera: PinholeCamera
     description: str
+    fit_defaults: Mapping[str, Any]
+    defaults_name: str
 
     def __len__(self) -> int: ...
 
@@ -65,6 +82,8 @@ class FileHeatmaps:
     headers are read until pixels are touched)."""
 
     description = "heatmaps/"
+    fit_defaults: Mapping[str, Any] = MappingProxyType({})
+    defaults_name = "heat-map files"
 
     def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
         self.folder = folder
@@ -119,6 +138,9 @@ class PhotoHeatmaps:
         self.options = options or DetectOptions()
         self.threads = threads
         self.description = f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+        self.fit_defaults = PHOTO_FIT_DEFAULTS
+        self.defaults_name = "heat-maps detected from photos (" + ", ".join(
+            f"{k}={v}" for k, v in PHOTO_FIT_DEFAULTS.items()) + ")"
         self._detector: HeatmapDetector | None = None
 
     def __len__(self) -> int:
@@ -165,3 +187,21 @@ def open_heatmaps(folder: FlightFolder, from_images: bool | None = None,
     if from_images:
         return PhotoHeatmaps(folder, model, options, threads=threads)
     return FileHeatmaps(folder)
+
+
+def fit_config_for(source: HeatmapSource, base: FitConfig | None = None,
+                   options: Mapping[str, Any] | None = None) -> FitConfig:
+    """The fit options of a job on ``source``: ``base`` (a ``--config`` file or
+    ``--preset``), or when it is None the defaults for the source's kind of maps
+    (:attr:`HeatmapSource.fit_defaults`); then ``options`` (the command line's) on top.
+
+    Raises:
+        InputError: naming the options, if they do not make a valid FitConfig.
+    """
+    from turbinefit.solver.config import FitConfig
+
+    try:
+        cfg = base or dataclasses.replace(FitConfig(), **source.fit_defaults)
+        return dataclasses.replace(cfg, **(options or {}))
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc), field="fit options") from None
