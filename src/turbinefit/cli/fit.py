@@ -48,6 +48,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from turbinefit.jobs.fit import FitReport, fit_folder
+    from turbinefit.solver.config import pair_frame_line
 
     cfg = resolve_fit_config(args)
     bar = None
@@ -80,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
               f"(load {t['load']:.2f} s, total {t['total']:.2f} s): {r.iterations} iterations, "
               f"{r.rounds} round(s), {r.termination}")
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
+        print(pair_frame_line(cfg, r.config))
         print(turbine_line(r.turbine))
         if report.before is not None and report.after is not None:
             b, a = report.before, report.after
