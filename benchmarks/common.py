@@ -16,14 +16,15 @@ RESULTS = HERE / "results"
 BIN = Path(sys.executable).parent / "turbinefit"
 
 
-def simulate(n: int, seed: int) -> Path:
+def simulate(n: int, seed: int, odometry: str = "gps") -> Path:
     """The default-preset flight folder of ``n`` keyframes and ``seed`` (simulated once,
-    then reused from ``benchmarks/data/``)."""
-    out = DATA / f"flight_n{n}_s{seed}"
+    then reused from ``benchmarks/data/``); ``odometry="vio"``: with body-frame odometry
+    (``simulate --odometry vio``)."""
+    out = DATA / (f"flight_n{n}_s{seed}" if odometry == "gps" else f"flight_{odometry}_n{n}_s{seed}")
     if not (out / "keyframes.txt").exists():
         DATA.mkdir(exist_ok=True)
         subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
-                        str(seed), "--overwrite", "--quiet"], check=True)
+                        str(seed), "--odometry", odometry, "--overwrite", "--quiet"], check=True)
     return out
 
 

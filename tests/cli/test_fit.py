@@ -58,9 +58,10 @@ def test_fit_joint_with_plots(sim_flight_dir: Path, tmp_path: Path,
     assert np.allclose(np.linalg.norm(p_out[:, :4], axis=1), 1.0)
     assert np.isfinite(p_out).all() and not np.allclose(p_out, p_in, atol=1e-6)
 
-    # config.yaml is the run's configuration (defaults here) and loads back
+    # config.yaml is the run's configuration (defaults here, with pair_frame="auto"
+    # resolved: GPS/IMU keyframes, no odometry.txt) and loads back
     cfg = read_fit_config(out_dir / "config.yaml")
-    assert cfg == FitConfig()
+    assert cfg == FitConfig(pair_frame="measured")
     assert yaml.safe_load((out_dir / "config.yaml").read_text())["turbinefit_version"] == \
         turbinefit.__version__
 
@@ -156,7 +157,8 @@ def test_fit_config_file_round_trip(sim_flight_dir: Path, tmp_path: Path,
     assert rc == 0, err
     cfg1 = read_fit_config(first / "config.yaml")
     assert cfg1 == dataclasses.replace(FitConfig(), points="interp", lambda_pair=2.5, robust="huber",
-                                       pair_sigma_r_deg=0.2, max_iterations=5)
+                                       pair_sigma_r_deg=0.2, max_iterations=5,
+                                       pair_frame="measured")  # auto, resolved
     # a previous run's config.yaml as --config; command-line options override it
     second = tmp_path / "second"
     rc, _, err = run(capsys, "fit", str(sim_flight_dir), "--out", str(second), "--no-plots", "--quiet",
@@ -170,8 +172,8 @@ def test_fit_preset(sim_flight_dir: Path, tmp_path: Path, capsys: pytest.Capture
     rc, _, err = run(capsys, "fit", str(sim_flight_dir), "--out", str(out_dir), "--no-plots", "--quiet",
                      "--preset", "all-corr", "--max-iterations", "3")
     assert rc == 0, err
-    assert read_fit_config(out_dir / "config.yaml") == dataclasses.replace(PRESETS["all-corr"],
-                                                                         max_iterations=3)
+    assert read_fit_config(out_dir / "config.yaml") == dataclasses.replace(
+        PRESETS["all-corr"], max_iterations=3, pair_frame="measured")
 
 
 def test_fit_never_modifies_its_input(flight_copy: Path, tmp_path: Path,

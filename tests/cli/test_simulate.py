@@ -158,3 +158,32 @@ def test_simulate_overwrite_refuses_a_fit_output(sim_flight_dir: Path, tmp_path:
                        "--height", "30", "--overwrite", "--quiet")
     assert_one_line_error(rc, out, err, re.escape(str(fitted)), r"not part of a flight")
     assert digest(fitted) == before
+
+
+def test_simulate_vio_writes_body_frame_odometry_that_fit_and_track_use(
+        sim_flight_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    flight = tmp_path / "vio"
+    rc, _, _ = run(capsys, "simulate", str(flight), *SIM_ARGS, "--odometry", "vio")
+    assert rc == 0
+    assert "odometry.txt" in entries(flight)
+    t, odo = poses_array(flight / "odometry.txt")
+    t_kf, kf = poses_array(flight / "keyframes.txt")
+    np.testing.assert_array_equal(t, t_kf)
+    np.testing.assert_array_equal(odo, kf)  # a VIO-only drone: keyframes are its odometry
+    _, gt = poses_array(flight / "groundtruth.txt")
+    np.testing.assert_allclose(odo[0], gt[0], atol=1e-6)
+    assert not np.allclose(odo[-1], gt[-1], atol=1e-3)
+    assert yaml.safe_load((flight / "simulation.yaml").read_text())["odometry"] == "vio"
+    # the gps flight of the same seed has no odometry.txt and the same ground truth
+    assert "odometry.txt" not in entries(sim_flight_dir)
+    np.testing.assert_array_equal(gt, poses_array(sim_flight_dir / "groundtruth.txt")[1])
+    for command, extra in (("fit", []), ("track", ["--window", "6"])):
+        rc, out, _ = run(capsys, command, str(flight), "--out", str(tmp_path / command),
+                         "--no-plots", *extra)
+        assert rc == 0
+        assert "pairwise frame: estimated (odometry.txt: body-frame odometry)\n" in out
+        saved = yaml.safe_load((tmp_path / command / "config.yaml").read_text())
+        assert (saved.get("fit") or saved)["pair_frame"] == "estimated"
+    rc, out, _ = run(capsys, "fit", str(sim_flight_dir), "--out", str(tmp_path / "gps"),
+                     "--no-plots")
+    assert rc == 0 and "pairwise frame: measured (GPS/IMU keyframes)\n" in out

@@ -3,6 +3,8 @@ tables, deterministic reports, the quality and length studies."""
 
 from __future__ import annotations
 
+import csv
+import dataclasses
 from pathlib import Path
 
 from support import tiny_sweep
@@ -54,7 +56,7 @@ def test_quality_and_length_studies(tmp_path: Path) -> None:
     assert {r["second_turbine"] for r in rep.rows} <= {True, False}
     report = (tmp_path / "q" / "report.md").read_text()
     assert "by heat-map blob width" in report and (tmp_path / "q" / "factors.png").is_file()
-    import dataclasses
+
 
     n = dataclasses.replace(study_config("length"), flights=6, width=160, height=120,
                             keyframes=8, keyframes_max=30)
@@ -64,3 +66,38 @@ def test_quality_and_length_studies(tmp_path: Path) -> None:
     assert [r["keyframes"] for r in rows] == ks
     s = summarize(n, rows)["factors"]["keyframes"]["joint"]
     assert sum(b["flights"] for b in s) == sum(25 <= k < 400 for k in ks)
+
+
+def test_odometry_study_compares_the_pair_frames_on_both_kinds_of_flight(tmp_path: Path) -> None:
+    from turbinefit.experiments.sweep import COLUMNS, read_rows
+
+    cfg = tiny_sweep("odometry", flights=4)
+    specs = flight_specs(cfg)
+    assert {s.odometry for s in specs} == {"gps", "vio"}
+    # the odometry draw comes last: the flights are those of a sweep without it
+    plain = flight_specs(dataclasses.replace(cfg, odometry=0.0))
+    assert [dataclasses.replace(s, odometry="gps") for s in specs] == plain
+    assert {s.odometry for s in plain} == {"gps"}
+    rep = run_study(cfg, tmp_path / "o", workers=1)
+    assert len(rep.rows) == 16 and all(r["status"] == "ok" for r in rep.rows)
+    for r in rep.rows:
+        assert r["odometry"] == specs[r["flight"]].odometry
+    by = summarize(cfg, rep.rows)["by_odometry"]
+    assert set(by) == {"gps", "vio"} and set(by["vio"]) == set(cfg.configs)
+    # auto is measured on gps flights and estimated on vio flights
+    gps = {r["config"]: r["final_position_m"] for r in rep.rows if r["odometry"] == "gps"
+           and r["flight"] == next(s.index for s in specs if s.odometry == "gps")}
+    assert gps["auto"] == gps["measured"]
+    vio = {r["config"]: r["final_position_m"] for r in rep.rows if r["odometry"] == "vio"
+           and r["flight"] == next(s.index for s in specs if s.odometry == "vio")}
+    assert vio["auto"] == vio["estimated"]
+    assert "by kind of pose measurements" in (tmp_path / "o" / "report.md").read_text()
+    # a table written before the odometry column is read as gps flights
+    table = tmp_path / "o" / "rows.csv"
+    with open(table, newline="") as f:
+        lines = list(csv.reader(f))
+    i = COLUMNS.index("odometry")
+    with open(table, "w", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerows(
+            [c for j, c in enumerate(line) if j != i] for line in lines)
+    assert {r["odometry"] for r in read_rows(table)} == {"gps"}

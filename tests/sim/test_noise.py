@@ -52,3 +52,39 @@ def test_perturb_turbine_uses_the_given_sigmas():
     assert np.abs(errs.mean(axis=0)).max() < 0.15
     same = perturb_turbine(NRE, np.zeros(7), rng)
     np.testing.assert_allclose(param_errors(same, NRE), 0.0, atol=1e-12)
+
+
+def test_body_odometry_steps_are_the_truth_plus_noise_of_the_documented_size():
+    """Each relative pose of the odometry is the ground truth's relative pose plus
+    translation noise of sigma sqrt(floor^2 + (f |step|)^2) per axis and rotation noise of
+    sigma_r per axis; chained from the first pose, its world frame drifts away."""
+    from turbinefit.costs.pairwise import relative_poses
+    from turbinefit.geometry.se3 import quat_conjugate, quat_log, quat_multiply
+    from turbinefit.sim.noise import (
+        VIO_SIGMA_R_DEG,
+        VIO_SIGMA_T_M,
+        VIO_SIGMA_T_PER_M,
+        body_odometry,
+    )
+
+    rng = np.random.default_rng(1)
+    n = 4001
+    # steps of 2-10 m with a turning camera (look-at along a random walk)
+    eye = np.cumsum(rng.normal(0, 3.5, (n, 3)), axis=0) + np.array([0, 0, 100])
+    gt = look_at(eye, eye + rng.normal(0, 1, (n, 3)) + np.array([30.0, 0, 0]))
+    odo = body_odometry(gt, np.random.default_rng(2))
+    np.testing.assert_allclose(odo.wxyz_xyz[0], gt.wxyz_xyz[0])
+    rel_gt = relative_poses(gt[:-1], gt[1:])
+    rel = relative_poses(odo[:-1], odo[1:])
+    step = np.linalg.norm(rel_gt.translation, axis=-1)
+    sig_t = np.sqrt(VIO_SIGMA_T_M**2 + (VIO_SIGMA_T_PER_M * step) ** 2)
+    z = (rel.translation - rel_gt.translation) / sig_t[:, None]  # in the camera's frame
+    assert abs(z.mean()) < 0.05 and 0.95 < z.std() < 1.05
+    dq = quat_multiply(rel.wxyz, quat_conjugate(rel_gt.wxyz))
+    phi = quat_log(np.where(dq[:, :1] < 0, -dq, dq))
+    assert 0.95 < np.degrees(phi.std(axis=0)).mean() / VIO_SIGMA_R_DEG < 1.05
+    dp, _ = pose_errors(odo, gt)
+    assert dp[-1] > 5.0  # the chained frame drifts far over 4000 steps
+    exact = body_odometry(gt, np.random.default_rng(2), scale=0.0)
+    dp, dr = pose_errors(exact, gt)
+    assert dp.max() < 1e-6 and dr.max() < 1e-8

@@ -73,3 +73,38 @@ def test_second_turbine_adds_responses_far_away():
         other = neighbour_turbine(NRE, rng)
         d = math.hypot(other.base_x - NRE.base_x, other.base_y - NRE.base_y)
         assert 150.0 <= d <= 400.0
+
+
+def test_default_gps_flights_are_unchanged():
+    """Values of a flight simulated before the odometry stream was added (same seed): the
+    default (gps) flight is bit for bit what it was."""
+    f = simulated_flight(6, seed=3)
+    np.testing.assert_allclose(f.world_T_cam.wxyz_xyz[-1], [
+        0.6113651535163609, -0.6485274071535837, -0.3439079285107146, 0.2955878683979363,
+        76.46589246834193, -56.25982333670883, 89.14863760946272], rtol=1e-13)
+    np.testing.assert_allclose(f.turbine.to_vector(), [
+        -1.9370586108057386, 1.4307868680994773, 86.03198860672073, 5.653407843687704,
+        4.489391546540411, 1.3481186345432985, 63.542734627627425], rtol=1e-13)
+    maps = np.stack([f.heatmaps[k] for k in range(6)]).astype(np.float64)
+    assert float(maps.sum()) == pytest.approx(9418.60811480457, rel=1e-12)
+    assert f.odometry is None
+
+
+def test_vio_flight_has_body_frame_odometry_and_the_same_scene():
+    gps = simulated_flight(8, seed=2)
+    vio = simulated_flight(8, seed=2, odometry="vio")
+    assert vio.odometry is not None
+    np.testing.assert_array_equal(vio.world_T_cam.wxyz_xyz, vio.odometry.wxyz_xyz)
+    np.testing.assert_array_equal(vio.gt_world_T_cam.wxyz_xyz, gps.gt_world_T_cam.wxyz_xyz)
+    assert vio.turbine == gps.turbine and vio.gt_turbine == gps.gt_turbine
+    assert np.array_equal(vio.heatmaps[7], gps.heatmaps[7])
+    np.testing.assert_allclose(vio.odometry.wxyz_xyz[0], vio.gt_world_T_cam.wxyz_xyz[0])
+    dp, _ = pose_errors(vio.odometry, vio.gt_world_T_cam)
+    assert dp[-1] > 0.1  # 8 keyframes: steps of ~170 m, 1 % each
+    exact = simulated_flight(8, seed=2, odometry="vio", odometry_noise=0.0)
+    dp, dr = pose_errors(exact.odometry, exact.gt_world_T_cam)
+    assert dp.max() < 1e-6 and dr.max() < 1e-8
+    with pytest.raises(ValueError, match="odometry"):
+        simulated_flight(4, odometry="wheel")
+    with pytest.raises(ValueError, match="odometry_noise"):
+        simulated_flight(4, odometry="vio", odometry_noise=-1.0)

@@ -24,3 +24,21 @@ def test_fit_config_validation():
         FitConfig(warmup_match_rounds=-1)
     cfg = FitConfig(points="interp", robust="huber")
     assert FitConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_pair_frame_auto_resolves_from_the_measurements():
+    from turbinefit.solver.config import pair_frame_line, resolve_pair_frame
+
+    auto = FitConfig()
+    assert auto.pair_frame == "auto"
+    assert resolve_pair_frame(auto, has_odometry=True).pair_frame == "estimated"
+    assert resolve_pair_frame(auto, has_odometry=False).pair_frame == "measured"
+    for frame in ("measured", "estimated"):
+        cfg = FitConfig(pair_frame=frame)  # type: ignore[arg-type]
+        assert resolve_pair_frame(cfg, True) == resolve_pair_frame(cfg, False) == cfg
+    used = resolve_pair_frame(auto, True)
+    assert pair_frame_line(auto, used) == (
+        "pairwise frame: estimated (odometry.txt: body-frame odometry)")
+    assert pair_frame_line(auto, resolve_pair_frame(auto, False)) == (
+        "pairwise frame: measured (GPS/IMU keyframes)")
+    assert pair_frame_line(used, used) == "pairwise frame: estimated (set in the options)"

@@ -2,6 +2,7 @@
 noiseless flights are recovered, noisy ones improved, every mode and unary configuration
 runs."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -149,3 +150,27 @@ def test_warmup_widens_the_basin():
     assert stages[0] == "align" and "match" in stages and stages[-1] == "refine"
     assert stages == sorted(stages, key=["align", "match", "refine"].index)
     assert {h.stage for h in cold.history} == {"refine"}
+
+
+@pytest.fixture(scope="module", params=["gps", "vio"])
+def odometry_flight(request) -> Flight:
+    return simulated_flight(60, seed=1, odometry=request.param)
+
+
+def test_default_fit_picks_the_pair_frame_of_the_measurements(odometry_flight):
+    """auto: the paper's residual (estimated) on body-frame odometry, measured on GPS/IMU
+    keyframes; the result records it, FitProblem resolves it alike, and the small flight
+    fits to its tolerance with the defaults."""
+    from turbinefit.solver.problem import FitProblem
+
+    f = odometry_flight
+    want = "measured" if f.odometry is None else "estimated"
+    assert FitProblem(f, FitConfig()).config.pair_frame == want
+    res = fit(f)
+    assert res.config.pair_frame == want
+    assert dataclasses.replace(res.config, pair_frame="auto") == FitConfig()
+    a0 = accuracy(f.world_T_cam, f.turbine, f.gt_world_T_cam, f.gt_turbine)
+    a = accuracy(res.world_T_cam, res.turbine, f.gt_world_T_cam, f.gt_turbine)
+    assert a.position_error_m < 0.45 < a0.position_error_m
+    assert a.orientation_error_deg < 0.35
+    assert a.model_point_error_m < 0.35 < a0.model_point_error_m

@@ -223,3 +223,50 @@ def test_heatmap_stack_of_a_window_is_referenced_not_copied() -> None:
     stack = tr._window.data.heatmaps
     assert isinstance(stack, HeatmapStack)
     assert all(np.shares_memory(stack[k], maps[k]) for k in range(2))
+
+
+def test_auto_pair_frame_follows_the_first_keyframe_and_refuses_mixing() -> None:
+    f = simulated_flight(4, seed=1, odometry="vio")
+    assert f.odometry is not None
+    without = Tracker(f.camera, f.turbine)
+    without.update(f.timestamps[0], f.world_T_cam[0], f.heatmaps[0])
+    assert without.config.fit.pair_frame == "measured"
+    with pytest.raises(KeyframeError, match="keyframe 1: odometry pose given"):
+        without.update(f.timestamps[1], f.world_T_cam[1], f.heatmaps[1], odometry=f.odometry[1])
+    tr = Tracker(f.camera, f.turbine)
+    assert tr.config.fit.pair_frame == "auto"
+    tr.update(f.timestamps[0], f.world_T_cam[0], f.heatmaps[0], odometry=f.odometry[0])
+    assert tr.config.fit.pair_frame == "estimated"
+    with pytest.raises(KeyframeError, match="keyframe 1: no odometry pose"):
+        tr.update(f.timestamps[1], f.world_T_cam[1], f.heatmaps[1])
+    assert tr.num_keyframes == 1  # refused keyframes change nothing
+    tr.update(f.timestamps[1], f.world_T_cam[1], f.heatmaps[1], odometry=f.odometry[1])
+    assert tr.num_keyframes == 2
+
+
+def test_prediction_uses_the_odometry_step() -> None:
+    """With odometry the pairwise measurements are its steps, not those of the keyframe
+    poses: keyframe poses far off do not move the tracker's estimates."""
+    f = simulated_flight(12, seed=1, odometry="vio")
+    assert f.odometry is not None and f.gt_world_T_cam is not None
+    junk = SE3(f.world_T_cam.wxyz_xyz.copy())
+    junk.wxyz_xyz[1:, 4:] += 50.0  # keyframes.txt 50 m off after the first keyframe
+    cfg = TrackerConfig(rounds=1, iterations=1, match_rounds=0)
+    est = []
+    for poses in (f.world_T_cam, junk):
+        tr = Tracker(f.camera, f.turbine, cfg)
+        for k in range(f.num_keyframes):
+            tr.update(f.timestamps[k], poses[k], f.heatmaps[k], odometry=f.odometry[k])
+        est.append(tr.causal_world_T_cam().wxyz_xyz)
+    np.testing.assert_allclose(est[0], est[1], atol=1e-9)
+
+
+def test_tracking_an_odometry_flight_with_the_defaults() -> None:
+    f = simulated_flight(60, seed=1, odometry="vio")
+    assert f.odometry is not None and f.gt_world_T_cam is not None and f.gt_turbine is not None
+    tr = Tracker(f.camera, f.turbine)
+    for k in range(f.num_keyframes):
+        tr.update(f.timestamps[k], f.world_T_cam[k], f.heatmaps[k], odometry=f.odometry[k])
+    a = accuracy(tr.world_T_cam(), tr.turbine, f.gt_world_T_cam, f.gt_turbine)
+    assert a.position_error_m < 0.4 and a.orientation_error_deg < 0.3
+    assert a.model_point_error_m < 0.3

@@ -10,7 +10,7 @@ from typing import Any
 
 from turbinefit.cli.common import positive_int, seed
 
-STUDY_NAMES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length")
+STUDY_NAMES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry")
 
 DESCRIPTION = """\
 Run (or resume) a Monte Carlo study: many simulated flights, each fitted under
@@ -25,6 +25,7 @@ and report.md (medians and 90th percentiles, figures embedded).
   basin    success rate against the size of the initial errors
   quality  heat-map faults, blur and a second turbine in view
   length   flight length (25-400 keyframes)
+  odometry pairwise frame measured / estimated / auto on GPS/IMU and odometry flights
   all      all of them, into OUT_DIR/<study>/
 
 Re-running the same command resumes without redoing finished rows. Flights run
@@ -40,7 +41,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help=", ".join(STUDY_NAMES) + " or all")
     e.add_argument("--flights", type=positive_int, default=None,
                    help="simulated flights (default: the study's: 200 for unary, joint and "
-                   "turbine, 20 for roll, 120 for basin and quality, 60 for length)")
+                   "turbine, 20 for roll, 120 for basin and quality, 60 for length and odometry)")
     e.add_argument("--keyframes", type=positive_int, default=100, help="keyframes per flight "
                    "(default: 100; the length study draws 25-400)")
     e.add_argument("--seed", type=seed, default=0, help="sweep seed (default: 0)")

@@ -43,6 +43,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    "1 m, 1 m, 2 m, 5 deg, 0.5 m, 5 deg, 2 m; 0 = exact)")
     s.add_argument("--heatmap-noise", type=number, default=None,
                    help="std. dev. of additive pixel noise on the heat-maps")
+    s.add_argument("--odometry", choices=["gps", "vio"], default="gps",
+                   help="gps: drifting GPS/IMU keyframe poses; vio: body-frame odometry "
+                   "(noisy relative motions chained from the first pose, its world frame "
+                   "drifting away) in odometry.txt and keyframes.txt")
     s.add_argument("--second-turbine", action="store_true",
                    help="add a second turbine in view (false responses)")
     s.add_argument("--images", action="store_true",
@@ -67,6 +71,8 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
                          field="--preset")
     base = PRESETS[args.preset]
     over: dict[str, Any] = {"n_keyframes": args.keyframes, "seed": args.seed}
+    if args.odometry != "gps":
+        over["odometry"] = args.odometry
     for name, key in (("width", "width"), ("height", "height"), ("drift_m", "drift_pos_m"),
                       ("drift_deg", "drift_rot_deg"), ("turbine", "turbine")):
         if getattr(args, name) is not None:

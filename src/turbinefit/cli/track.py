@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
     from turbinefit.errors import InputError
     from turbinefit.jobs.track import TrackReport, track_folder
+    from turbinefit.solver.config import pair_frame_line
     from turbinefit.solver.tracker import TrackerConfig
 
     fit_cfg = resolve_fit_config(args)
@@ -121,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
                   f"{lat.max_ms:.1f} ms, trend {lat.slope_ms_per_1000_keyframes:+.2f} ms per "
                   "1000 keyframes")
         print(turbine_line(report.turbine))
+        print(pair_frame_line(cfg.fit, s.config.fit))
         for name, a in (("initial", s.initial), ("causal", s.causal), ("final", s.final)):
             if a is not None:
                 print(f"{name:8s} position error {a.position_error_m:7.3f} m, orientation "

@@ -19,7 +19,9 @@ Studies:
 * ``quality``: heat-map quality: faults (pixel noise, missed parts, false responses, peak
   jitter) up to 4x the defaults, blob and ridge width 0.5-3x, a second turbine in view on
   half the flights; points corr and interp, lines interp;
-* ``length``: flight length, 25 to 400 keyframes along the same inspection path.
+* ``length``: flight length, 25 to 400 keyframes along the same inspection path;
+* ``odometry``: the pairwise frame (measured, estimated, auto; and corr-normal with auto)
+  on flights with GPS/IMU keyframes and on flights with body-frame odometry (half each).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from turbinefit.experiments.sweep import (
 )
 
 #: Study names, in the order ``all`` runs them.
-STUDIES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length")
+STUDIES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry")
 #: The paper's four unary configurations (points, lines).
 UNARY = {
     "points corr, lines interp": {"points": "corr", "lines": "interp"},
@@ -65,6 +67,11 @@ REPORT_FILE = "report.md"
 
 _JOINT = {"joint": {"preset": "paper-best"}}
 _JOINT_POSE = {**_JOINT, "pose-only": {"preset": "pose-only"}}
+#: The pairwise frames of the odometry study (the paper's best unary terms each).
+_FRAMES = {"measured": {"preset": "paper-best", "pair_frame": "measured"},
+           "estimated": {"preset": "paper-best", "pair_frame": "estimated"},
+           "auto": {"preset": "paper-best"},
+           "corr-normal, auto": {"preset": "corr-normal"}}
 #: Each study: its default number of flights and the sweep fields it sets.
 _STUDY_SWEEPS: dict[str, tuple[int, dict[str, Any]]] = {
     "unary": (200, {"configs": UNARY}),
@@ -79,6 +86,7 @@ _STUDY_SWEEPS: dict[str, tuple[int, dict[str, Any]]] = {
                       "configs": {k: UNARY[k] for k in ("points corr, lines interp",
                                                          "points interp, lines interp")}}),
     "length": (60, {"keyframes": 25, "keyframes_max": 400, "configs": _JOINT}),
+    "odometry": (60, {"odometry": 0.5, "configs": _FRAMES}),
 }
 
 
@@ -201,10 +209,26 @@ def summarize(cfg: SweepConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
             key: {name: binned_medians([r for r in rows if r["config"] == name], key, edges)
                   for name in cfg.configs}
             for key, _, edges in FACTORS[cfg.name]}
+    if cfg.odometry > 0:
+        out["by_odometry"] = by_odometry(rows, list(cfg.configs))
     if cfg.name == "basin":
         ok = _ok(rows)
         out["success"] = basin_table(rows)
         out["success_rate"] = (float(np.mean([_success(r) for r in ok])) if ok else None)
+    return out
+
+
+def by_odometry(rows: list[dict[str, Any]], configs: list[str]) -> dict[str, Any]:
+    """Per kind of pose measurements (``gps``, ``vio``) and configuration: fits, and the
+    median final position, orientation and model-point errors."""
+    out: dict[str, Any] = {}
+    for kind in ("gps", "vio"):
+        out[kind] = {}
+        for name in configs:
+            ok = [r for r in _ok(rows, name) if r.get("odometry", "gps") == kind]
+            out[kind][name] = {"flights": len(ok), **{
+                m: float(np.median(_col(ok, f"final_{m}"))) if ok else None
+                for m in ("position_m", "orientation_deg", "model_points_m")}}
     return out
 
 
@@ -422,6 +446,16 @@ def _study_text(cfg: SweepConfig, s: dict[str, Any]) -> list[str]:
                     f"{_num(b['median'])} ({_num(b['p90'])}), n={b['flights']}" for b in bins)
                     + " |")
             out.append("")
+    if s.get("by_odometry"):
+        out += ["Median final errors by kind of pose measurements (gps: GPS/IMU keyframes; "
+                "vio: body-frame odometry in odometry.txt):", "",
+                "| measurements | configuration | fits | position [m] | orientation [deg] | "
+                "model points [m] |", "|---|---|---|---|---|---|"]
+        for kind, by in s["by_odometry"].items():
+            for n, v in by.items():
+                out.append(f"| {kind} | {n} | {v['flights']} | {_num(v['position_m'])} | "
+                           f"{_num(v['orientation_deg'])} | {_num(v['model_points_m'])} |")
+        out.append("")
     if cfg.name == "basin" and s.get("success"):
         b = s["success"]
         e = b["edges"]
@@ -471,6 +505,10 @@ def write_index(root: str | os.PathLike[str]) -> Path:
             head = f"median final position [m] ({name}): " + "; ".join(parts)
         elif cfg.name == "basin" and s.get("success_rate") is not None:
             head = f"success rate {100 * s['success_rate']:.0f} %"
+        elif s.get("by_odometry"):
+            head = "median final position [m]: " + "; ".join(
+                f"{kind} " + ", ".join(f"{n} {_num(v['position_m'])}" for n, v in by.items())
+                for kind, by in s["by_odometry"].items())
         elif s["ranking_by_median_final_position"]:  # a custom sweep
             head = "by median final position: " + " > ".join(
                 f"{n} {s['configs'][n]['position_m']['final_median']:.3f} m"

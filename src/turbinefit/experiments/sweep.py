@@ -8,7 +8,9 @@ simulated once in memory and fitted under every configuration; each (flight,
 configuration) gives one row of the tidy table ``rows.csv``:
 
 * the flight: index, seed, keyframes, turbine, the pose / turbine / heat-map fault /
-  heat-map blur scales, the blade-rotation offset, whether a second turbine is in view;
+  heat-map blur scales, the blade-rotation offset, whether a second turbine is in view,
+  the kind of pose measurements (``odometry``: ``gps``, GPS/IMU keyframes, or ``vio``,
+  body-frame odometry, see :class:`~turbinefit.sim.scenario.SimConfig`);
 * the outcome: ``status`` (``ok`` or ``error``) and ``reason``;
 * initial and final errors: mean position [m], orientation [deg], camera roll [deg],
   model points [m], each turbine parameter (m, deg);
@@ -62,10 +64,12 @@ ERROR_COLUMNS = ("position_m", "orientation_deg", "roll_deg", "model_points_m", 
 COLUMNS: tuple[str, ...] = (
     "flight", "config", "status", "reason", "seed", "keyframes", "turbine", "pose_scale",
     "theta_scale", "heatmap_scale", "blur_scale", "blade_rotation_offset_deg", "second_turbine",
-    *(f"init_{c}" for c in ERROR_COLUMNS), *(f"final_{c}" for c in ERROR_COLUMNS),
+    "odometry", *(f"init_{c}" for c in ERROR_COLUMNS), *(f"final_{c}" for c in ERROR_COLUMNS),
     "initial_cost", "final_cost", "iterations", "rounds", "termination", "time_s",
 )
 ROWS_FILE = "rows.csv"
+#: The columns of tables written before the ``odometry`` column (read as ``gps`` flights).
+_COLUMNS_BEFORE_ODOMETRY = tuple(c for c in COLUMNS if c != "odometry")
 
 
 @dataclass(frozen=True)
@@ -92,6 +96,10 @@ class SweepConfig:
             (2 px at 320 px): a blurrier CNN.
         second_turbine: fraction of flights with a neighbouring turbine in view (false
             responses in the same channels); true / false = all / none.
+        odometry: fraction of flights whose pose measurements are body-frame odometry
+            (``vio``: odometry.txt, its noise scaled by the flight's pose scale) instead of
+            GPS/IMU keyframes (``gps``); drawn per flight after everything else, so that 0
+            leaves every flight as it was.
         configs: name -> fit options (a mapping of :class:`FitConfig` fields, optionally
             with ``preset``: a name of :data:`turbinefit.solver.config.PRESETS` to start
             from).
@@ -111,6 +119,7 @@ class SweepConfig:
     blur_scale: tuple[float, float] = (1.0, 1.0)
     blade_rotation_offset_deg: float = 0.0
     second_turbine: float = 0.0
+    odometry: float = 0.0
     configs: dict[str, dict[str, Any]] = field(
         default_factory=lambda: {"paper-best": {"preset": "paper-best"}})
 
@@ -141,6 +150,9 @@ class SweepConfig:
             object.__setattr__(self, "second_turbine", 1.0 if self.second_turbine else 0.0)
         if not (isinstance(self.second_turbine, int | float) and 0 <= self.second_turbine <= 1):
             raise bad("second_turbine", "must be a fraction in [0, 1] (or true / false)")
+        if not (isinstance(self.odometry, int | float) and not isinstance(self.odometry, bool)
+                and 0 <= self.odometry <= 1):
+            raise bad("odometry", "must be the fraction of body-frame odometry flights, in [0, 1]")
         if min(self.blur_scale) <= 0:
             raise bad("blur_scale", "must be positive")
         if not isinstance(self.configs, dict) or not self.configs:
@@ -155,6 +167,7 @@ class SweepConfig:
         for k in ("pose_scale", "theta_scale", "heatmap_scale", "blur_scale"):
             d[k] = list(d[k])
         d["second_turbine"] = float(d["second_turbine"])
+        d["odometry"] = float(d["odometry"])
         return d
 
     @staticmethod
@@ -216,6 +229,7 @@ class FlightSpec:
     keyframes: int = 100
     blur_scale: float = 1.0
     second_turbine: bool = False
+    odometry: str = "gps"
 
 
 def flight_specs(cfg: SweepConfig) -> list[FlightSpec]:
@@ -234,9 +248,10 @@ def flight_specs(cfg: SweepConfig) -> list[FlightSpec]:
                                            math.log(cfg.keyframes_max))))
         blur = float(rng.uniform(*cfg.blur_scale))
         neighbour = bool(rng.uniform() < cfg.second_turbine)
+        vio = bool(rng.uniform() < cfg.odometry)
         out.append(FlightSpec(i, seed, pose_scale=scales[0], theta_scale=scales[1],
                               heatmap_scale=scales[2], keyframes=n, blur_scale=blur,
-                              second_turbine=neighbour))
+                              second_turbine=neighbour, odometry="vio" if vio else "gps"))
     return out
 
 
@@ -255,7 +270,8 @@ def _sim_config(cfg: SweepConfig, spec: FlightSpec) -> SimConfig:
         drift_pos_m=base.drift_pos_m * spec.pose_scale,
         drift_rot_deg=base.drift_rot_deg * spec.pose_scale,
         turbine_sigma=tuple(x * spec.theta_scale for x in DEFAULT_TURBINE_SIGMA),
-        second_turbine=spec.second_turbine)
+        second_turbine=spec.second_turbine, odometry=spec.odometry,
+        odometry_noise=spec.pose_scale)
 
 
 def _errors(prefix: str, poses: SE3, turbine: TurbineParams, gt_poses: SE3,
@@ -279,7 +295,7 @@ def run_flight(cfg: SweepConfig, spec: FlightSpec, configs: list[str]) -> list[d
         "theta_scale": spec.theta_scale, "heatmap_scale": spec.heatmap_scale,
         "blur_scale": spec.blur_scale,
         "blade_rotation_offset_deg": cfg.blade_rotation_offset_deg,
-        "second_turbine": spec.second_turbine}
+        "second_turbine": spec.second_turbine, "odometry": spec.odometry}
     try:
         flight = simulate_flight(_sim_config(cfg, spec))
         if cfg.blade_rotation_offset_deg:
@@ -340,7 +356,7 @@ def format_rows(rows: list[dict[str, Any]]) -> str:
 
 
 _INT = {"flight", "seed", "keyframes", "iterations", "rounds"}
-_STR = {"config", "status", "reason", "turbine", "termination"}
+_STR = {"config", "status", "reason", "turbine", "termination", "odometry"}
 
 
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
@@ -350,19 +366,19 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     lines = read_text(p).splitlines(keepends=True)
     if not lines:
         raise InputError("empty sweep table (no header)", p)
-    header = next(csv.reader([lines[0]]))
-    if tuple(header) != COLUMNS:
+    header = tuple(next(csv.reader([lines[0]])))
+    if header not in (COLUMNS, _COLUMNS_BEFORE_ODOMETRY):
         raise InputError("not a turbinefit sweep table (unexpected columns)", p, 1)
     out = []
     for n, line in enumerate(lines[1:], start=2):
         last = n == len(lines)
         fields = next(csv.reader([line]), [])
-        if len(fields) != len(COLUMNS) or (last and not line.endswith("\n")):
+        if len(fields) != len(header) or (last and not line.endswith("\n")):
             if last:
                 break  # interrupted while writing: the flight is redone
-            raise InputError(f"expected {len(COLUMNS)} fields, found {len(fields)}", p, n)
-        row: dict[str, Any] = {}
-        for c, v in zip(COLUMNS, fields, strict=True):
+            raise InputError(f"expected {len(header)} fields, found {len(fields)}", p, n)
+        row: dict[str, Any] = {"odometry": "gps"}  # tables without the column: GPS/IMU
+        for c, v in zip(header, fields, strict=True):
             if c in _STR:
                 row[c] = v
             elif v == "":

@@ -196,7 +196,10 @@ def track_folder(
     With photos (``images/`` and no ``heatmaps/``, or ``from_images``) each keyframe's photo
     is read and run through the CNN (ONNX ``model`` or the shipped one, with
     ``detect_options``) as it arrives; its latency includes detection.
-    ``progress(estimate, total)`` is called after every keyframe.
+    ``progress(estimate, total)`` is called after every keyframe. With an ``odometry.txt``
+    its consecutive relative poses are the pairwise measurements (keyframes.txt gives the
+    first keyframe's pose), as in the batch fit; ``pair_frame="auto"`` then resolves to
+    ``estimated``, and the summary and ``config.yaml`` record the frame used.
     """
     cfg = config or TrackerConfig()
     flight_dir = Path(flight_dir)
@@ -208,17 +211,20 @@ def track_folder(
     tracker = Tracker(source.camera, folder.turbine, cfg)
     n = folder.num_keyframes
     poses = folder.keyframes.poses
+    odometry = folder.odometry  # its steps are the pairwise measurements, if present
     latency = np.empty(n)
     for k in range(n):
         t0 = time.perf_counter()
         maps = source.keyframe(k)
         try:
-            est = tracker.update(float(folder.timestamps[k]), poses[k], maps)
+            est = tracker.update(float(folder.timestamps[k]), poses[k], maps,
+                                 odometry=None if odometry is None else odometry[k])
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3
         if progress is not None:
             progress(est, n)
+    cfg = tracker.config  # pair_frame="auto" resolved by the first keyframe
     final_poses = tracker.world_T_cam()
     causal_poses = tracker.causal_world_T_cam()
     turbine = tracker.turbine

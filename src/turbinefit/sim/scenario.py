@@ -8,7 +8,8 @@ turbine, heat-maps rendered from the **ground truth**, then sequential (drifting
 the poses and Gaussian noise on the turbine parameters as the initial estimates. It is
 fully determined by :attr:`SimConfig.seed`: independent random streams are spawned from
 ``np.random.SeedSequence(seed)`` for the turbine, the trajectory, the second turbine, the
-pose drift, the turbine noise and the heat-maps (one child per keyframe), so changing one
+pose drift, the turbine noise, the heat-maps (one child per keyframe) and the body-frame
+odometry (appended last, so that it changed no earlier flight), so changing one
 part of the configuration does not reshuffle the others (e.g. the turbine and flight path
 do not change with the heat-map noise, and the turbine does not change with N).
 """
@@ -23,7 +24,12 @@ import numpy as np
 from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA, drift_poses, perturb_turbine
+from turbinefit.sim.noise import (
+    DEFAULT_TURBINE_SIGMA,
+    body_odometry,
+    drift_poses,
+    perturb_turbine,
+)
 from turbinefit.sim.render import HeatmapNoise, RenderConfig, render_flight
 from turbinefit.sim.trajectory import TrajectoryConfig, plan_inspection
 from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
@@ -31,7 +37,10 @@ from turbinefit.sim.turbines import neighbour_turbine, preset_turbine
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
 #: Stream indices of :func:`simulate_flight`'s spawned generators.
-_STREAMS = ("turbine", "trajectory", "second_turbine", "drift", "turbine_noise", "heatmaps")
+_STREAMS = ("turbine", "trajectory", "second_turbine", "drift", "turbine_noise", "heatmaps",
+            "odometry")
+#: Kinds of pose measurements :func:`simulate_flight` simulates (``SimConfig.odometry``).
+ODOMETRY_KINDS = ("gps", "vio")
 
 #: Heat-map imperfections of the default scenario: a little of everything.
 DEFAULT_HEATMAP_NOISE = HeatmapNoise(
@@ -69,6 +78,16 @@ class SimConfig:
         trajectory: shape of the inspection flight.
         t0: timestamp of keyframe 0 [s].
         dt: time between keyframes [s].
+        odometry: the drone's pose measurements. ``gps``: GPS/IMU poses in the world
+            frame, drifted as ``drift_pos_m`` / ``drift_rot_deg`` say; no odometry.txt.
+            ``vio``: body-frame odometry (:func:`~turbinefit.sim.noise.body_odometry`:
+            each relative motion measured in the camera's frame with per-edge noise,
+            chained from the first ground-truth pose, so that its world frame drifts
+            away), written to odometry.txt; keyframes.txt holds the same chained poses
+            (what a drone flying on visual-inertial odometry alone has), and the drift
+            fields are not used.
+        odometry_noise: scale of the ``vio`` odometry's per-edge sigmas (1 = the defaults
+            of :mod:`turbinefit.sim.noise`: 0.02 m + 1 % of the step, 0.05 deg per axis).
     """
 
     n_keyframes: int = 200
@@ -88,6 +107,8 @@ class SimConfig:
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     t0: float = 0.0
     dt: float = 1.0
+    odometry: str = "gps"
+    odometry_noise: float = 1.0
 
     def __post_init__(self) -> None:
         if self.n_keyframes < 1:
@@ -101,6 +122,13 @@ class SimConfig:
             raise ValueError("turbine_sigma needs 7 values")
         if not self.dt > 0:
             raise ValueError(f"dt must be positive, got {self.dt}")
+        if self.odometry not in ODOMETRY_KINDS:
+            raise ValueError(f"odometry must be {' or '.join(ODOMETRY_KINDS)}, "
+                             f"got {self.odometry!r}")
+        if not (isinstance(self.odometry_noise, int | float) and math.isfinite(self.odometry_noise)
+                and self.odometry_noise >= 0):
+            raise ValueError(f"odometry_noise must be a non-negative number, "
+                             f"got {self.odometry_noise!r}")
 
     def camera(self) -> PinholeCamera:
         """The simulated camera (principal point at the image centre)."""
@@ -160,7 +188,8 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
     Returns:
         A :class:`~turbinefit.flight.Flight` whose ``world_T_cam`` are the drifted poses
         and ``turbine`` the perturbed turbine (the initial estimates), with
-        ``gt_world_T_cam`` / ``gt_turbine`` the truth, ``odometry=None``, timestamps
+        ``gt_world_T_cam`` / ``gt_turbine`` the truth, ``odometry`` None (``gps``) or the
+        body-frame odometry (``vio``, then also ``world_T_cam``), timestamps
         ``t0 + k dt`` and heat-maps rendered from the ground truth (N, 7, H, W).
     """
     cfg = cfg or SimConfig()
@@ -182,6 +211,10 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
     maps = render_flight(camera, gt_poses, gt_turbine.to_vector(), cfg.geometry,
                          cfg.render_config(), rng["heatmaps"], distractors, progress=progress)
     init_poses = drift_poses(gt_poses, rng["drift"], cfg.drift_pos_m, cfg.drift_rot_deg)
+    odometry = None
+    if cfg.odometry == "vio":
+        odometry = body_odometry(gt_poses, rng["odometry"], cfg.odometry_noise)
+        init_poses = odometry
     init_turbine = perturb_turbine(gt_turbine, cfg.turbine_sigma, rng["turbine_noise"])
     timestamps = cfg.t0 + cfg.dt * np.arange(cfg.n_keyframes, dtype=np.float64)
     return Flight(
@@ -190,7 +223,7 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
         world_T_cam=init_poses,
         heatmaps=HeatmapStack(maps),
         turbine=init_turbine,
-        odometry=None,
+        odometry=odometry,
         gt_world_T_cam=gt_poses,
         gt_turbine=gt_turbine,
     )

@@ -12,6 +12,7 @@ from turbinefit.turbine.model import TurbineGeometry
 Mode = Literal["joint", "pose", "turbine"]
 UnaryKind = Literal["interp", "corr", "none"]
 Gauge = Literal["first", "gps"]
+PairFrame = Literal["auto", "measured", "estimated"]
 
 
 @dataclass(frozen=True)
@@ -48,12 +49,15 @@ class FitConfig:
     """Added relative-translation std. dev. per metre of the measured step [m/m]: long
     steps are less certain (sigma_t^2 = pair_sigma_t^2 + (pair_sigma_t_per_m * |step|)^2;
     0 = the paper's fixed C)."""
-    pair_frame: Literal["measured", "estimated"] = "measured"
+    pair_frame: PairFrame = "auto"
     """Frame of the relative translation in the pairwise term: measured (the GPS/IMU
     attitude of the first keyframe of each pair: the world-frame GPS step is compared, so
-    the IMU's attitude drift does not leak into the positions) or estimated (the current
-    estimate's attitude: the paper's residual, right for body-frame odometry such as VIO).
-    See turbinefit.costs.pairwise."""
+    the IMU's attitude drift does not leak into the positions), estimated (the current
+    estimate's attitude: the paper's residual, right for body-frame odometry such as VIO)
+    or auto: estimated when the flight has odometry (odometry.txt: body-frame steps),
+    measured when it has GPS/IMU keyframes only. fit, FitProblem and the Tracker resolve
+    auto from their data (resolve_pair_frame); results record the frame used. See
+    turbinefit.costs.pairwise."""
     pair_information: tuple[float, ...] | None = None
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
@@ -136,8 +140,8 @@ class FitConfig:
             raise bad("line_sampling", "must be visible or uniform")
         if self.line_residual not in ("point", "normal"):
             raise bad("line_residual", "must be point or normal")
-        if self.pair_frame not in ("measured", "estimated"):
-            raise bad("pair_frame", "must be measured or estimated")
+        if self.pair_frame not in ("auto", "measured", "estimated"):
+            raise bad("pair_frame", "must be auto, measured or estimated")
         if self.robust not in ("none", "huber", "cauchy"):
             raise bad("robust", "must be none, huber or cauchy")
         for name in ("samples_per_line", "max_iterations", "max_rounds", "stall_iterations",
@@ -197,6 +201,28 @@ class FitConfig:
         if isinstance(d.get("pair_information"), list):
             d["pair_information"] = tuple(float(x) for x in d["pair_information"])
         return FitConfig(**d)
+
+
+def resolve_pair_frame(config: FitConfig, has_odometry: bool) -> FitConfig:
+    """``config`` with ``pair_frame="auto"`` resolved: ``estimated`` when the pairwise
+    measurements are body-frame odometry (``has_odometry``: the flight's odometry.txt),
+    ``measured`` when they are the GPS/IMU keyframe poses. Other values are kept."""
+    if config.pair_frame != "auto":
+        return config
+    return dataclasses.replace(config, pair_frame="estimated" if has_odometry else "measured")
+
+
+def pair_frame_line(requested: FitConfig, used: FitConfig) -> str:
+    """What a command prints about the pairwise frame: the frame ``used`` (a result's
+    resolved config) and why, e.g. ``pairwise frame: estimated (odometry.txt: body-frame
+    odometry)``, ``... measured (GPS/IMU keyframes)`` or ``... (set in the options)``."""
+    if requested.pair_frame != "auto":
+        why = "set in the options"
+    elif used.pair_frame == "estimated":
+        why = "odometry.txt: body-frame odometry"
+    else:
+        why = "GPS/IMU keyframes"
+    return f"pairwise frame: {used.pair_frame} ({why})"
 
 
 #: Named configurations: the paper's four unary combinations, the normal-residual variant

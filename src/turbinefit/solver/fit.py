@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
-from turbinefit.solver.config import FitConfig
+from turbinefit.solver.config import FitConfig, resolve_pair_frame
 from turbinefit.solver.lm import IterationRecord
 from turbinefit.solver.problem import FitProblem
 from turbinefit.solver.rounds import initial_correspondences, run_rounds
@@ -51,7 +51,7 @@ class FitResult:
         history: every LM iteration.
         time_s: wall time of the solve [s].
         num_residuals: scalar residuals in the final problem.
-        config: the configuration used.
+        config: the configuration used (``pair_frame`` resolved: never ``auto``).
     """
 
     world_T_cam: SE3
@@ -120,12 +120,15 @@ def fit(
 
     Args:
         flight: the flight (initial poses and turbine are the starting point).
-        config: options (default :class:`FitConfig`: joint, points=corr, lines=interp).
+        config: options (default :class:`FitConfig`: joint, points=corr, lines=interp);
+            ``pair_frame="auto"`` becomes estimated if ``flight.odometry`` is given,
+            measured otherwise, and the result's ``config`` records which.
         keyframes: subset of keyframe indices to use (default: all).
         initial_poses, initial_turbine: override the starting point.
         callback: called after every LM iteration (e.g. for a progress bar).
     """
-    cfg = config or FitConfig()
+    # auto resolved once, here: every stage and the result use the frame of the flight
+    cfg = resolve_pair_frame(config or FitConfig(), flight.odometry is not None)
     t0 = time.perf_counter()
     problem = FitProblem(flight, cfg, keyframes)
     kf = problem.keyframes

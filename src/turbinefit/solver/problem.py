@@ -48,7 +48,7 @@ from turbinefit.costs.robust import RobustLoss
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.solver.config import FitConfig
+from turbinefit.solver.config import FitConfig, resolve_pair_frame
 from turbinefit.solver.marginal import GaussianPrior
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
@@ -74,6 +74,11 @@ class ProblemData(Protocol):
     @property
     def num_keyframes(self) -> int:
         """N."""
+
+    @property
+    def odometry(self) -> SE3 | None:
+        """(N,) body-frame odometry poses, or None (the pairwise measurements are then the
+        steps of ``world_T_cam``); decides ``pair_frame="auto"``."""
 
     def measurement_poses(self) -> SE3:
         """(N,) poses whose consecutive relative poses are the pairwise measurements."""
@@ -147,7 +152,10 @@ class FitProblem:
 
     Args:
         data: the keyframes (camera, heat-maps, initial poses, measurements).
-        config: the fit options.
+        config: the fit options; ``pair_frame="auto"`` is resolved from ``data``
+            (estimated with odometry, measured without,
+            :func:`~turbinefit.solver.config.resolve_pair_frame`) and :attr:`config` holds
+            the resolved options.
         keyframes: indices into the flight's keyframes to use (default: all), in time order;
             consecutive ones are linked by pairwise edges.
         fixed: (len(keyframes),) poses held at their current values (default: from the
@@ -166,7 +174,7 @@ class FitProblem:
                  prior: GaussianPrior | None = None,
                  evidence: NDArray[np.bool_] | None = None) -> None:
         self.data = data
-        self.config = config
+        self.config = config = resolve_pair_frame(config, data.odometry is not None)
         self.keyframes = (np.arange(data.num_keyframes) if keyframes is None
                           else np.asarray(keyframes, dtype=np.int64))
         self.num_keyframes = int(self.keyframes.size)

@@ -6,7 +6,9 @@ before the next arrives, refines the poses of a sliding window of the last ``win
 keyframes together with theta:
 
 1. the new pose is predicted from the previous estimate and the measured step (the
-   pairwise term's residual is zero there);
+   pairwise term's residual is zero there): the GPS/IMU keyframes' world-frame step, or,
+   with odometry (``update(..., odometry=...)``) and the ``estimated`` pairwise frame, the
+   odometry's body-frame step applied to the previous estimate;
 2. a few Levenberg-Marquardt rounds (on the first keyframes and when the turbine comes
    back into view, first one *match* round of wide-basin correspondences, as the batch
    warm-up does) refine the window with the configured cost of
@@ -31,6 +33,11 @@ kept apart from the marginal information and removed exactly once the images out
 Gauge: as in the batch fit, the first keyframe is held fixed (``gauge="first"``) or every
 keyframe is weakly anchored to its GPS position (``"gps"``).
 
+Pairwise frame: ``pair_frame="auto"`` is resolved by the first keyframe: ``estimated``
+if it comes with an odometry pose (body-frame odometry), ``measured`` if not; every later
+keyframe must do the same (otherwise a :class:`KeyframeError`). :attr:`Tracker.config`
+then holds the resolved options.
+
 With ``window=None`` nothing is marginalised and :meth:`Tracker.finish` runs the batch
 problem to convergence: the tracker then ends in a minimum of the batch problem.
 """
@@ -50,7 +57,7 @@ from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
-from turbinefit.solver.config import FitConfig
+from turbinefit.solver.config import FitConfig, resolve_pair_frame
 from turbinefit.solver.fit import match_config
 from turbinefit.solver.linalg import arrow_covariance
 from turbinefit.solver.marginal import (
@@ -206,10 +213,13 @@ def marginal_config(cfg: FitConfig) -> FitConfig:
         lines="corr" if cfg.lines != "none" else "none", line_residual="normal")
 
 
-def _predict(world_T_prev: SE3, meas_prev: SE3, meas_new: SE3) -> SE3:
-    """The new pose at zero pairwise residual: the previous estimate moved by the measured
-    world-frame step and rotated by the measured relative rotation."""
+def _predict(world_T_prev: SE3, meas_prev: SE3, meas_new: SE3, frame: str = "measured") -> SE3:
+    """The new pose at zero pairwise residual: the previous estimate rotated by the
+    measured relative rotation and moved by the measured world-frame step (``measured``
+    frame), or composed with the measured body-frame step (``estimated``)."""
     rel = meas_prev.inverse() @ meas_new
+    if frame == "estimated":
+        return world_T_prev @ rel
     q = (world_T_prev @ rel).wxyz
     return SE3(np.concatenate([q, world_T_prev.translation + meas_new.translation
                                - meas_prev.translation]))
@@ -233,10 +243,9 @@ class Tracker:
                  config: TrackerConfig | None = None) -> None:
         self.camera = camera
         self.config = config or TrackerConfig()
-        cfg = self.config
-        self._refine_cfg = cfg.fit
-        self._marg_cfg = marginal_config(cfg.fit) if cfg.marginal_terms == "corr" else cfg.fit
-        self._match_cfg = match_config(cfg.fit)
+        self._set_costs()
+        #: whether the keyframes come with odometry (decided by the first keyframe)
+        self._has_odometry: bool | None = None
         self._theta = initial_turbine.to_vector().astype(np.float64)
         if not np.all(np.isfinite(self._theta)):
             raise ValueError("initial turbine contains NaN or inf")
@@ -255,6 +264,12 @@ class Tracker:
         self._final: list[SE3 | None] = []
         self.estimates: list[TrackEstimate] = []
         """The causal estimate of every keyframe, in arrival order."""
+
+    def _set_costs(self) -> None:
+        cfg = self.config
+        self._refine_cfg = cfg.fit
+        self._marg_cfg = marginal_config(cfg.fit) if cfg.marginal_terms == "corr" else cfg.fit
+        self._match_cfg = match_config(cfg.fit)
 
     # ------------------------------------------------------------------------------
     @property
@@ -298,9 +313,16 @@ class Tracker:
         return SE3(np.stack([e.world_T_cam.wxyz_xyz for e in self.estimates]))
 
     # ------------------------------------------------------------------------------
-    def _check(self, timestamp: float, world_T_cam: SE3,
-               heatmaps: NDArray[np.floating]) -> NDArray[np.floating]:
+    def _check(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating],
+               odometry: SE3 | None) -> NDArray[np.floating]:
         k = len(self._times)
+        if self._has_odometry is not None and (odometry is not None) != self._has_odometry:
+            raise KeyframeError(k, "odometry pose given, but not for the keyframes before"
+                                if odometry is not None else
+                                "no odometry pose, but the keyframes before had one")
+        if odometry is not None and (odometry.batch_shape != ()
+                                     or not np.all(np.isfinite(odometry.wxyz_xyz))):
+            raise KeyframeError(k, "odometry pose must be one finite SE3")
         if not math.isfinite(timestamp):
             raise KeyframeError(k, "timestamp is not finite")
         if self._times and timestamp <= self._times[-1]:
@@ -364,21 +386,32 @@ class Tracker:
         self._window = w.with_estimate(poses)
         return poses, prob, lin, iterations
 
-    def update(self, timestamp: float, world_T_cam: SE3,
-               heatmaps: NDArray[np.floating]) -> TrackEstimate:
+    def update(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating], *,
+               odometry: SE3 | None = None) -> TrackEstimate:
         """Add one keyframe and refine; returns the estimate for it.
 
         Args:
             timestamp: keyframe time [s], later than the previous keyframe's.
-            world_T_cam: its GPS/IMU camera-to-world pose (the measurement).
+            world_T_cam: its GPS/IMU (initial) camera-to-world pose: the measurement
+                without odometry; with, the starting point of the first keyframe and
+                the anchor of ``gauge="gps"``.
             heatmaps: (7, H, W) float32 heat-maps at the camera's size.
+            odometry: its odometry pose (e.g. the flight's odometry.txt): the relative
+                poses of consecutive odometry poses are then the pairwise measurements.
+                Given for every keyframe or for none; the first keyframe decides
+                ``pair_frame="auto"`` (estimated with odometry, measured without).
 
         Raises:
             KeyframeError: on input that is out of order, of the wrong shape or not finite
                 (nothing is changed).
         """
         t0 = time.perf_counter()
-        maps = self._check(float(timestamp), world_T_cam, heatmaps)
+        maps = self._check(float(timestamp), world_T_cam, heatmaps, odometry)
+        if self._has_odometry is None:  # the first keyframe resolves pair_frame="auto"
+            self._has_odometry = odometry is not None
+            self.config = dataclasses.replace(
+                self.config, fit=resolve_pair_frame(self.config.fit, self._has_odometry))
+            self._set_costs()
         index = len(self._times)
         self._times.append(float(timestamp))
         self._final.append(None)
@@ -386,11 +419,15 @@ class Tracker:
         w = self._window
         if w is None:
             self._window = TrackWindow.first(self.camera, index, float(timestamp), world_T_cam,
-                                             maps, world_T_cam, evidence)
+                                             maps, world_T_cam, evidence, odometry)
         else:
             last = len(w) - 1
-            pred = _predict(w.world_T_cam[last], w.data.world_T_cam[last], world_T_cam)
-            self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence)
+            meas = w.data.measurement_poses()[last]
+            pred = _predict(w.world_T_cam[last], meas,
+                            world_T_cam if odometry is None else odometry,
+                            self.config.fit.pair_frame)
+            self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence,
+                                    odometry)
 
         cfg = self.config
         stages = []

@@ -2,7 +2,8 @@
 
 :class:`Keyframes` holds what :class:`~turbinefit.solver.problem.FitProblem` reads of a
 flight (:class:`~turbinefit.solver.problem.ProblemData`): the camera, the keyframes'
-timestamps, measured poses and heat-maps, and optionally odometry.
+timestamps, measured poses and heat-maps, and optionally odometry (body-frame odometry
+poses whose steps are the pairwise measurements).
 :class:`TrackWindow` is the tracker's window: those data of its keyframes plus their
 arrival numbers, current estimates and whether their heat-maps show anything.
 """
@@ -71,20 +72,29 @@ class TrackWindow:
 
     @staticmethod
     def first(camera: PinholeCamera, index: int, timestamp: float, measured: SE3,
-              heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool) -> TrackWindow:
-        """A window of one keyframe: its measured pose, heat-maps and estimate."""
+              heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
+              odometry: SE3 | None = None) -> TrackWindow:
+        """A window of one keyframe: its measured pose, heat-maps, estimate and, if the
+        flight has odometry, its odometry pose."""
         data = Keyframes(camera, np.array([timestamp], dtype=np.float64),
-                         SE3(measured.wxyz_xyz[None].copy()), HeatmapStack([heatmaps]))
+                         SE3(measured.wxyz_xyz[None].copy()), HeatmapStack([heatmaps]),
+                         None if odometry is None else SE3(odometry.wxyz_xyz[None].copy()))
         return TrackWindow(np.array([index], dtype=np.int64), data,
                            SE3(world_T_cam.wxyz_xyz[None].copy()), np.array([evidence]))
 
     def append(self, index: int, timestamp: float, measured: SE3,
-               heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool) -> TrackWindow:
-        """The window with one more keyframe at its end."""
+               heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
+               odometry: SE3 | None = None) -> TrackWindow:
+        """The window with one more keyframe at its end (``odometry`` given exactly when
+        the window's keyframes have it)."""
         d = self.data
+        if (odometry is None) != (d.odometry is None):
+            raise ValueError("odometry must be given for every keyframe of a window or none")
         maps = [d.heatmaps[k] for k in range(len(d.heatmaps))] + [heatmaps]
         data = Keyframes(d.camera, np.append(d.timestamps, timestamp),
-                         _append(d.world_T_cam, measured), HeatmapStack(maps))
+                         _append(d.world_T_cam, measured), HeatmapStack(maps),
+                         None if d.odometry is None or odometry is None
+                         else _append(d.odometry, odometry))
         return TrackWindow(np.append(self.index, index), data,
                            _append(self.world_T_cam, world_T_cam),
                            np.append(self.evidence, evidence))
@@ -93,7 +103,8 @@ class TrackWindow:
         """The window without its first keyframe (which must not be the only one)."""
         d = self.data
         data = Keyframes(d.camera, d.timestamps[1:], d.world_T_cam[1:],
-                         d.heatmaps.subset(np.arange(1, len(d.heatmaps))))
+                         d.heatmaps.subset(np.arange(1, len(d.heatmaps))),
+                         None if d.odometry is None else d.odometry[1:])
         return TrackWindow(self.index[1:], data, self.world_T_cam[1:], self.evidence[1:])
 
     def with_estimate(self, world_T_cam: SE3) -> TrackWindow:
