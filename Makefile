@@ -27,8 +27,8 @@ demo: $(STAMP)
 	$(BIN)/turbinefit simulate $(DEMO)/flight --keyframes 200 --seed 1 --images --overwrite
 	$(BIN)/turbinefit detect $(DEMO)/flight/images/40.000000.png $(DEMO)/flight/images/120.000000.png \
 		--out $(DEMO)/detect --overwrite
-	$(BIN)/turbinefit fit $(DEMO)/flight --from-images --points interp --robust cauchy --out $(DEMO)/fit --overwrite
-	$(BIN)/turbinefit track $(DEMO)/flight --out $(DEMO)/track --overwrite
+	$(BIN)/turbinefit fit $(DEMO)/flight --from-images --out $(DEMO)/fit --overwrite
+	$(BIN)/turbinefit track $(DEMO)/flight --from-images --out $(DEMO)/track --overwrite
 	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit; in-flight tracking: $(DEMO)/track"
 
 ## test: run the test suite

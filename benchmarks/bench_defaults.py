@@ -36,22 +36,27 @@ from turbinefit.io.flight_folder import read_flight_folder
 from turbinefit.jobs.sources import FileHeatmaps, PhotoHeatmaps
 from turbinefit.solver import FitConfig, Tracker, TrackerConfig, fit
 
-#: Candidate configurations: name -> FitConfig overrides.
-CANDIDATES: dict[str, dict[str, Any]] = {
-    "paper-best": {},
-    "paper-best-cauchy": {"robust": "cauchy"},
-    "interp-cauchy": {"points": "interp", "robust": "cauchy"},
-    "interp-cauchy-scale1": {"points": "interp", "robust": "cauchy", "robust_scale": 1.0},
-    "interp-cauchy-scale4": {"points": "interp", "robust": "cauchy", "robust_scale": 4.0},
-    "interp-cauchy-floor0.1": {"points": "interp", "robust": "cauchy", "heatmap_floor": 0.1},
-    "corr-normal": {"lines": "corr", "line_residual": "normal"},
-    "corr-normal-cauchy": {"lines": "corr", "line_residual": "normal", "robust": "cauchy"},
-    "corr-normal-cauchy-sigma2": {"lines": "corr", "line_residual": "normal",
-                                  "robust": "cauchy", "pixel_sigma": 2.0},
+#: Candidate configurations per heat-map source: name -> FitConfig overrides. (A first
+#: sweep of 3 flights also tried interp-cauchy with robust_scale 4 and heatmap_floor 0.1,
+#: and paper-best with Cauchy, on both sources: none led on either.)
+CANDIDATES: dict[str, dict[str, dict[str, Any]]] = {
+    "ideal": {
+        "paper-best": {},
+        "corr-normal": {"lines": "corr", "line_residual": "normal"},
+        "corr-normal-cauchy": {"lines": "corr", "line_residual": "normal", "robust": "cauchy"},
+    },
+    "photos": {
+        "interp-cauchy": {"points": "interp", "robust": "cauchy"},
+        "interp-cauchy-scale1": {"points": "interp", "robust": "cauchy", "robust_scale": 1.0},
+        "corr-normal-cauchy-sigma2": {"lines": "corr", "line_residual": "normal",
+                                      "robust": "cauchy", "pixel_sigma": 2.0},
+        "corr-normal-cauchy-sigma2-scale1": {"lines": "corr", "line_residual": "normal",
+                                             "robust": "cauchy", "pixel_sigma": 2.0,
+                                             "robust_scale": 1.0},
+        "corr-normal-cauchy-sigma3": {"lines": "corr", "line_residual": "normal",
+                                      "robust": "cauchy", "pixel_sigma": 3.0},
+    },
 }
-#: The tracker is replayed with these only (its work per keyframe is bounded, not its cost).
-TRACK_CANDIDATES = ("paper-best", "interp-cauchy", "corr-normal", "corr-normal-cauchy",
-                    "paper-best-cauchy")
 
 
 def simulate(seed: int, n: int) -> Path:
@@ -91,19 +96,22 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=list(range(12)))
     ap.add_argument("--keyframes", type=int, default=200)
+    ap.add_argument("--sources", nargs="+", default=["ideal", "photos"],
+                    choices=["ideal", "photos"])
     ap.add_argument("--no-track", action="store_true", help="fits only")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_defaults.json")
     args = ap.parse_args()
     rows: list[dict[str, Any]] = []
     for seed in args.seeds:
         folder = read_flight_folder(simulate(seed, args.keyframes))
-        for source_name, source in (("ideal", FileHeatmaps(folder, mmap=False)),
-                                    ("photos", PhotoHeatmaps(folder))):
+        for source_name in args.sources:
+            source = (FileHeatmaps(folder, mmap=False) if source_name == "ideal"
+                      else PhotoHeatmaps(folder))
             t0 = time.perf_counter()
             flight = folder.flight(source.stack(), source.camera)
             load_s = time.perf_counter() - t0
             initial = errors(flight, flight.world_T_cam, flight.turbine)
-            for name, over in CANDIDATES.items():
+            for name, over in CANDIDATES[source_name].items():
                 cfg = dataclasses.replace(FitConfig(), **over)
                 t1 = time.perf_counter()
                 res = fit(flight, cfg)
@@ -112,32 +120,33 @@ def main() -> None:
                     "initial_position_m": initial["position_m"], "load_s": load_s,
                     "fit_s": time.perf_counter() - t1,
                     **errors(flight, res.world_T_cam, res.turbine)}
-                if not args.no_track and name in TRACK_CANDIDATES:
+                if not args.no_track:
                     row.update(track(flight, cfg))
                 rows.append(row)
-                print(f"seed {seed:2d} {source_name:6s} {name:26s} position "
+                print(f"seed {seed:2d} {source_name:6s} {name:32s} position "
                       f"{row['position_m']:.3f} m  orientation {row['orientation_deg']:.3f} deg  "
                       f"model points {row['model_point_m']:.3f} m"
                       + (f"  track final {row['final_position_m']:.3f} m causal "
-                         f"{row['causal_position_m']:.3f} m"
+                         f"{row['causal_position_m']:.3f} m better "
+                         f"{row['causal_better_than_initial_after_20']:.2f}"
                          if "final_position_m" in row else ""), flush=True)
     summary: dict[str, Any] = {}
-    for source_name in ("ideal", "photos"):
+    for source_name in args.sources:
         print(f"\n{source_name}: mean over {len(args.seeds)} flights")
         table = {}
-        for name in CANDIDATES:
+        for name in CANDIDATES[source_name]:
             sel = [r for r in rows if r["source"] == source_name and r["config"] == name]
-            keys = [k for k in sel[0] if isinstance(sel[0][k], float) and k != "load_s"]
+            keys = [k for k in sel[0] if isinstance(sel[0][k], float) and not k.endswith("_s")]
             means = {k: statistics.fmean(r[k] for r in sel) for k in keys}
             table[name] = means
-            print(f"  {name:26s} " + "  ".join(f"{k} {v:.3f}" for k, v in means.items()
-                                               if not k.endswith("_s")))
+            print(f"  {name:32s} " + "  ".join(f"{k} {v:.3f}" for k, v in means.items()))
         best = min(table, key=lambda n: table[n]["position_m"])
         print(f"  best in position: {best}")
         summary[source_name] = {"means": table, "best_position": best}
     write_json(args.out, {"machine": {"platform": platform.platform()},
                           "seeds": args.seeds, "keyframes": args.keyframes,
-                          "candidates": CANDIDATES, "summary": summary, "rows": rows})
+                          "candidates": {k: CANDIDATES[k] for k in args.sources},
+                          "summary": summary, "rows": rows})
     print(f"\nwrote {args.out}")
 
 

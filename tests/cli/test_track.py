@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from support import (
     N_KEYFRAMES,
     assert_one_line_error,
@@ -134,11 +135,18 @@ def test_track_refuses_to_write_into_its_input_or_over_other_files(
 
 def test_track_from_photos_detects_inside_each_update(photo_flight: Path, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    from turbinefit.jobs.sources import PHOTO_FIT_DEFAULTS
+
     shutil.rmtree(photo_flight / "heatmaps")
     out = tmp_path / "track"
     assert main(["track", str(photo_flight), "--out", str(out), "--no-plots", "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["heatmaps"].startswith("detected from images/")
+    # no options: the fit options measured best for detected maps, recorded as such
+    assert "detected from photos" in summary["defaults"]
+    fit_options = yaml.safe_load((out / "config.yaml").read_text())["fit"]
+    assert {k: fit_options[k] for k in PHOTO_FIT_DEFAULTS} == dict(PHOTO_FIT_DEFAULTS)
+    assert summary["config"]["tracker"]["window"] == 20
     assert summary["num_keyframes"] == 6
     assert not (photo_flight / "heatmaps").exists()
     # a photo of the wrong size: one clear error naming it, nothing written

@@ -281,3 +281,12 @@ def resolve_fit_config(args: argparse.Namespace) -> FitConfig:
         return dataclasses.replace(base or FitConfig(), **options)
     except ValueError as exc:
         raise InputError(str(exc), field="fit options") from None
+
+
+def pair_frame_report(base: FitConfig | None, options: dict[str, Any], used: FitConfig) -> str:
+    """The line a command prints about the pairwise frame ``used`` and why (asked for on
+    the command line or in --config / --preset, or chosen from the flight's data)."""
+    from turbinefit.solver.config import pair_frame_line
+
+    requested = options.get("pair_frame", "auto" if base is None else base.pair_frame)
+    return pair_frame_line(dataclasses.replace(used, pair_frame=requested), used)

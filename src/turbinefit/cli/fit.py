@@ -13,6 +13,7 @@ from turbinefit.cli.common import (
     add_photo_options,
     detect_options,
     fit_base_and_options,
+    pair_frame_report,
     turbine_line,
 )
 
@@ -48,7 +49,6 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from turbinefit.jobs.fit import FitReport, fit_folder
-    from turbinefit.solver.config import pair_frame_line
 
     base, options = fit_base_and_options(args)
     bar = None
@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         if report.summary.defaults is not None:
             print(f"options: the defaults for {report.summary.defaults}")
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
-        print(pair_frame_line(cfg, r.config))
+        print(pair_frame_report(base, options, r.config))
         print(turbine_line(r.turbine))
         if report.before is not None and report.after is not None:
             b, a = report.before, report.after

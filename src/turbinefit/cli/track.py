@@ -13,8 +13,9 @@ from turbinefit.cli.common import (
     add_photo_options,
     degrees,
     detect_options,
+    fit_base_and_options,
+    pair_frame_report,
     positive_int,
-    resolve_fit_config,
     turbine_line,
     whole_nonneg,
 )
@@ -67,21 +68,21 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
 
     from turbinefit.errors import InputError
     from turbinefit.jobs.track import TrackReport, track_folder
-    from turbinefit.solver.config import pair_frame_line
     from turbinefit.solver.tracker import TrackerConfig
 
-    fit_cfg = resolve_fit_config(args)
+    base, options = fit_base_and_options(args)
     if args.window == 1:
         raise InputError("must be >= 2, or 0 to keep every keyframe", field="--window")
+    tracker_options: dict[str, Any] = {
+        "window": args.window or None, "rounds": args.rounds, "iterations": args.iterations,
+        "marginal_terms": args.marginal_terms}
+    if args.no_prior:
+        tracker_options["theta_sigma"] = None
     try:
-        cfg = TrackerConfig(fit=fit_cfg, window=args.window or None, rounds=args.rounds,
-                            iterations=args.iterations, marginal_terms=args.marginal_terms)
-        if args.no_prior:
-            cfg = dataclasses.replace(cfg, theta_sigma=None)
+        config = None if base is None else TrackerConfig(fit=base)
     except ValueError as exc:
         raise InputError(str(exc), field="track options") from None
     bar = None
@@ -106,7 +107,9 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         report: TrackReport = track_folder(
-            args.flight_dir, args.out_dir, cfg, plots=not args.no_plots,
+            args.flight_dir, args.out_dir,
+            config,
+            tracker_options=tracker_options, options=options, plots=not args.no_plots,
             overwrite=args.overwrite, progress=progress, config_path=args.config,
             from_images=args.from_images, model=args.model,
             detect_options=detect_options(args))
@@ -122,7 +125,9 @@ def run(args: argparse.Namespace) -> int:
                   f"{lat.max_ms:.1f} ms, trend {lat.slope_ms_per_1000_keyframes:+.2f} ms per "
                   "1000 keyframes")
         print(turbine_line(report.turbine))
-        print(pair_frame_line(cfg.fit, s.config.fit))
+        if s.defaults is not None:
+            print(f"options: the defaults for {s.defaults}")
+        print(pair_frame_report(base, options, s.config.fit))
         for name, a in (("initial", s.initial), ("causal", s.causal), ("final", s.final)):
             if a is not None:
                 print(f"{name:8s} position error {a.position_error_m:7.3f} m, orientation "

@@ -9,9 +9,10 @@ heat-maps and of the tracker's update.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -29,7 +30,7 @@ from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
 from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
-from turbinefit.jobs.sources import PhotoHeatmaps, open_heatmaps
+from turbinefit.jobs.sources import PhotoHeatmaps, fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams
 
@@ -93,6 +94,8 @@ class TrackSummary:
         initial_turbine, final_turbine: the turbine before and after.
         final_sigma: standard deviation of each turbine parameter at the end (None if the
             information was singular).
+        defaults: which fit defaults the options started from (None: a --config file or
+            preset).
         initial, causal, final, final_without_back_substitution: accuracy of the initial
             poses, of each keyframe's estimate on arrival, of the final estimates and of
             those without moving marginalised keyframes (None without ground truth).
@@ -113,6 +116,7 @@ class TrackSummary:
     causal: Accuracy | None = None
     final: Accuracy | None = None
     final_without_back_substitution: Accuracy | None = None
+    defaults: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         turbine: dict[str, Any] = {"initial": self.initial_turbine.to_dict(),
@@ -131,6 +135,8 @@ class TrackSummary:
             "theta_prior_active_at_end": self.theta_prior_active_at_end,
             "turbine": turbine,
         }
+        if self.defaults is not None:
+            out["defaults"] = self.defaults
         if (self.initial is not None and self.causal is not None and self.final is not None
                 and self.final_without_back_substitution is not None):
             out["accuracy"] = {
@@ -176,6 +182,8 @@ def track_folder(
     out_dir: str | os.PathLike[str],
     config: TrackerConfig | None = None,
     *,
+    tracker_options: Mapping[str, Any] | None = None,
+    options: Mapping[str, Any] | None = None,
     plots: bool = True,
     overwrite: bool = False,
     progress: Callable[[TrackEstimate, int], None] | None = None,
@@ -200,14 +208,24 @@ def track_folder(
     its consecutive relative poses are the pairwise measurements (keyframes.txt gives the
     first keyframe's pose), as in the batch fit; ``pair_frame="auto"`` then resolves to
     ``estimated``, and the summary and ``config.yaml`` record the frame used.
+
+    Options: ``config`` (None = the tracker's defaults, with the fit options measured best
+    for the kind of heat-maps, :func:`turbinefit.jobs.sources.fit_config_for`), with the
+    TrackerConfig fields of ``tracker_options`` and the FitConfig fields of ``options`` set
+    on top.
     """
-    cfg = config or TrackerConfig()
     flight_dir = Path(flight_dir)
     out = Path(out_dir)
     TRACK_OUTPUTS.check(out, flight_inputs(flight_dir, None if config_path is None
                                            else Path(config_path)), overwrite)
     folder = read_flight_folder(flight_dir)
     source = open_heatmaps(folder, from_images, model, detect_options)
+    fit_cfg = fit_config_for(source, None if config is None else config.fit, options)
+    try:
+        cfg = dataclasses.replace(config or TrackerConfig(), fit=fit_cfg,
+                                  **(tracker_options or {}))
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc), field="track options") from None
     tracker = Tracker(source.camera, folder.turbine, cfg)
     n = folder.num_keyframes
     poses = folder.keyframes.poses
@@ -235,7 +253,8 @@ def track_folder(
          if isinstance(source, PhotoHeatmaps) else source.description),
         cfg, LatencyStats.of(latency, cfg.window),
         float(np.mean([e.iterations for e in tracker.estimates])),
-        tracker.theta_prior_active, folder.turbine, turbine)
+        tracker.theta_prior_active, folder.turbine, turbine,
+        defaults=None if config is not None else source.defaults_name)
     if last.theta_covariance is not None:
         summary.final_sigma = dict(zip(TurbineParams.NAMES,
                                        np.sqrt(np.diag(last.theta_covariance)).tolist(),
