@@ -21,6 +21,7 @@ def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
     f = folder.flight(source.stack(), source.camera)
     assert (f.camera.width, f.camera.height) == (FIT_DETECT_WIDTH, 240)
     assert (f.heatmaps.height, f.heatmaps.width) == (240, FIT_DETECT_WIDTH)
-    full = read_flight(flight)
+    full = read_flight_folder(flight)
+    assert read_flight(flight).camera == f.camera  # the simulated maps are at 320 x 240 too
     assert f.camera.fx == pytest.approx(full.camera.fx / 2)
     assert f.camera.cx == pytest.approx((full.camera.cx + 0.5) / 2 - 0.5)

@@ -62,14 +62,16 @@ class HeatmapSource(Protocol):
 
 class FileHeatmaps:
     """The heat-maps of a flight folder's ``heatmaps/`` (memory-mapped: only the ``.npy``
-    headers are read until pixels are touched)."""
+    headers are read until pixels are touched), at their own size: :attr:`camera` is
+    ``camera.yaml``'s scaled to it
+    (:meth:`~turbinefit.io.flight_folder.FlightFolder.heatmap_camera`)."""
 
     description = "heatmaps/"
 
     def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
         self.folder = folder
-        self.camera = folder.camera
         self._stack = folder.read_heatmaps(mmap)
+        self.camera = folder.heatmap_camera(self._stack)
 
     def __len__(self) -> int:
         return len(self._stack)
