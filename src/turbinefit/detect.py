@@ -315,6 +315,26 @@ class HeatmapDetector:
         zv = ndimage.map_coordinates(crop, [v[inside], u[inside]], order=1, mode="nearest")
         box[inside] = np.maximum(box[inside], zv)
 
+    def map_size(self, width: int, height: int) -> tuple[int, int]:
+        """(width, height) of the maps the net makes for a ``width`` x ``height`` photo
+        (:meth:`detect_small`: its model input size divided by ``output_scale``; 160 x
+        120 for a 4:3 photo and the shipped model). Pixel ``(j, i)`` of these maps is
+        photo pixel ``u = (j + 0.5) width / w - 0.5``, ``v = (i + 0.5) height / h - 0.5``
+        (the photo's camera :meth:`~turbinefit.geometry.camera.PinholeCamera.resized` to
+        them)."""
+        mw, mh = model_input_size(width, height, self.info)
+        s = self.info.output_scale
+        return mw // s, mh // s
+
+    @property
+    def photo_width(self) -> int:
+        """The widest a photo needs to be for this detector [px]: the model's input width,
+        times :data:`ZOOM_MAX` with test-time zoom (its crops see the photo enlarged up
+        to that). Wider photos can be decoded at this width
+        (:func:`turbinefit.io.images.read_image`'s ``reduce_to``) without losing
+        anything the net sees but rounding."""
+        return math.ceil(self.info.input_width * (ZOOM_MAX if self.zoom else 1.0))
+
     def detect_small(self, image: NDArray[np.uint8]) -> F32Array:
         """Heat-maps (7, h, w) at the model's output size of one RGB uint8 photo (the
         input size divided by ``output_scale``): flip-averaged if :attr:`flip`, the tip

@@ -6,13 +6,14 @@ decodes and encodes (PNG, JPEG and whatever else it reads); grey, palette, 16-bi
 alpha images are converted to 8-bit RGB, and EXIF orientation is applied, so a photo is
 seen the way a viewer shows it.
 
-A photo that is only used at a reduced size is decoded at that size:
-``read_image(path, size=(w, h))`` asks Pillow for a JPEG's DCT-scaled decode
+A JPEG photo that is only used at a reduced size is decoded at that size:
+``read_image(path, reduce_to=(w, h))`` asks Pillow for a DCT-scaled decode
 (:meth:`PIL.Image.Image.draft`: 1/2, 1/4 or 1/8 of the size, the smallest scale that is
-still at least ``w`` x ``h``; a 20 MP JPEG decodes about ten times faster at 1/4 and in a
-sixteenth of the memory) and then resizes exactly to ``w`` x ``h``
-(:func:`resize_image`); other formats are decoded at full size and resized.
-:func:`image_size` gives the upright size from the header, to choose ``size`` with.
+still at least ``w`` x ``h``; a 20 MP JPEG decodes several times faster at 1/4, in a
+sixteenth of the memory) and then resizes exactly to ``w`` x ``h`` (:func:`resize_image`).
+Other formats (PNG) have no such decode and are read at full size as they are, so their
+pixels do not change. :func:`image_size` gives the upright size from the header, to
+choose ``reduce_to`` with (:func:`reduced_size`).
 
 Resizing (:func:`resize_image`) uses Pillow's resampling, which keeps pixel centres
 aligned (the convention of :meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and
@@ -76,12 +77,12 @@ def _swaps_axes(im: Image.Image) -> bool:
         return False
 
 
-def read_image(path: StrPath, size: tuple[int, int] | None = None) -> U8Image:
+def read_image(path: StrPath, reduce_to: tuple[int, int] | None = None) -> U8Image:
     """Read an image file as RGB uint8 (H, W, 3), upright (EXIF orientation applied).
 
-    ``size`` = (width, height): the image resized to exactly that size, a JPEG decoded
-    at the smallest DCT scale (1/1, 1/2, 1/4, 1/8) that is at least that large and then
-    resized (module docstring); None = the full size.
+    ``reduce_to`` = (width, height): a JPEG is decoded at the smallest DCT scale (1/1,
+    1/2, 1/4, 1/8) that is at least that large and resized to exactly that size (module
+    docstring); other formats are read at their full size. None = full size.
 
     Raises:
         InputError: naming the file if it is missing, unreadable or not an image Pillow
@@ -89,8 +90,9 @@ def read_image(path: StrPath, size: tuple[int, int] | None = None) -> U8Image:
     """
     p = Path(path)
     with _image_errors(p), Image.open(p) as im:
-        if size is not None and im.format == "JPEG":
-            w, h = (size[1], size[0]) if _swaps_axes(im) else size
+        jpeg = reduce_to is not None and im.format == "JPEG"
+        if reduce_to is not None and jpeg:
+            w, h = (reduce_to[1], reduce_to[0]) if _swaps_axes(im) else reduce_to
             im.draft("RGB", (int(w), int(h)))
         im.load()
         upright: Image.Image = ImageOps.exif_transpose(im) or im
@@ -98,8 +100,8 @@ def read_image(path: StrPath, size: tuple[int, int] | None = None) -> U8Image:
     arr = np.asarray(rgb, dtype=np.uint8)
     if arr.ndim != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise InputError(f"image has no pixels (shape {arr.shape})", path=p)
-    if size is not None:
-        arr = resize_image(arr, int(size[0]), int(size[1]))
+    if reduce_to is not None and jpeg:
+        arr = resize_image(arr, int(reduce_to[0]), int(reduce_to[1]))
     return np.ascontiguousarray(arr)
 
 

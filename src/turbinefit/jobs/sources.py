@@ -23,7 +23,7 @@ from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
-from turbinefit.io.images import check_image, read_image
+from turbinefit.io.images import image_size, read_image, reduced_size
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
@@ -100,7 +100,11 @@ class PhotoHeatmaps:
 
     Photos must be at the size of ``camera.yaml``; their maps are made at that size, or at
     ``width`` px wide (camera resized to match, :func:`detection_camera`) if the camera is
-    wider. Every photo's header is checked when the source is made, before any work.
+    wider. Every photo's header (format and size) is checked when the source is made,
+    before any work. A JPEG wider than the detector uses
+    (:attr:`~turbinefit.detect.HeatmapDetector.photo_width`, 640 px for the shipped model)
+    is decoded at that width (DCT-scaled, :func:`turbinefit.io.images.read_image`); other
+    photos are decoded in full.
     :meth:`stack` detects ``threads`` photos at once, one inference thread each
     (:class:`~turbinefit.detect.DetectorPool`; None = one per core); :meth:`keyframe`
     detects one photo with one detector that does not spin-wait (the tracker's solver
@@ -111,9 +115,12 @@ class PhotoHeatmaps:
                  options: DetectOptions | None = None, *, width: int = FIT_DETECT_WIDTH,
                  threads: int | None = None) -> None:
         self.paths = keyframe_images(folder.root, folder.timestamps)
+        cam = self.photo_camera = folder.camera
         for p in self.paths:  # headers only, before any work
-            check_image(p)
-        self.photo_camera = folder.camera
+            w, h = image_size(p)
+            if (w, h) != (cam.width, cam.height):
+                raise InputError(f"photo is {w}x{h} but camera.yaml is {cam.width}x{cam.height}",
+                                 path=p)
         self.camera = detection_camera(folder.camera, width)
         from turbinefit.detect import DetectOptions
 
@@ -130,11 +137,8 @@ class PhotoHeatmaps:
         return self.paths[k]
 
     def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
-        img = read_image(path)
         cam = self.photo_camera
-        if img.shape[:2] != (cam.height, cam.width):
-            raise InputError(f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
-                             f"{cam.width}x{cam.height}", path=path)
+        img = read_image(path, reduce_to=reduced_size(cam.width, cam.height, det.photo_width))
         return det.detect(img, size=(self.camera.width, self.camera.height))
 
     def keyframe(self, k: int) -> F32Maps:
