@@ -172,7 +172,7 @@ def test_detect_large_jpeg_writes_small_maps_at_the_full_size_peaks(
                  "--threads", "1"]) == 0
     maps = np.load(out / "big.npy")
     assert maps.shape == (7, 120, 160)
-    assert read_image(out / "big.png").shape == (960, 1280, 3)  # the overlay, 1280 wide
+    assert read_image(out / "big.png").shape == (480, 640, 3)  # the overlay, 640 wide
     # the full-size maps of the fully decoded photo: their peaks are the small maps' peaks
     # mapped to the photo, u = (j + 0.5) W / w - 0.5, to within the scale (12.5 px)
     full = detector.detect(read_image(tmp_path / "big.jpg"))

@@ -22,7 +22,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
         "OUT_DIR/<stem>.npy, float32 (7, h, w) (channels point_base, point_tower_top, "
         "point_hub, point_blade_tip, line_tower, line_nacelle, line_blade; values in [0, 1]) "
         "at the net's own resolution (160x120 for a 4:3 photo and the shipped model) or "
-        "--max-size, and OUT_DIR/<stem>.png, the photo (at most 1280 px wide) with the "
+        "--max-size, and OUT_DIR/<stem>.png, the photo (at most 640 px wide) with the "
         "heat-maps overlaid (base red, tower top orange, hub yellow, tips magenta, tower "
         "cyan, nacelle green, blades blue). Map pixel (j, i) of a WxH photo is photo pixel "
         "u = (j + 0.5) W / w - 0.5, v = (i + 0.5) H / h - 0.5: the photo's camera resized to "
