@@ -6,6 +6,8 @@ Formats, frames and units are described in each module's docstring:
 * :mod:`turbinefit.io.camera_yaml` - ROS camera_info / OpenCV FileStorage intrinsics.
 * :mod:`turbinefit.io.turbine_yaml` - the seven turbine parameters (metres, radians).
 * :mod:`turbinefit.io.flight_folder` - a whole flight (the above plus ``heatmaps/*.npy``).
+* :mod:`turbinefit.io.heatmap_files` - the ``heatmaps/*.npy`` files, at their own size.
+* :mod:`turbinefit.io.images` - photos (reduced JPEG decoding, PNG writing, resizing).
 * :mod:`turbinefit.io.atomic` - atomic file and directory output.
 * :mod:`turbinefit.io.yaml_files` - strict YAML parsing shared by the YAML formats.
 

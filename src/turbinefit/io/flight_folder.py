@@ -191,7 +191,8 @@ class FlightFolder:
         return self.root / HEATMAP_DIR / heatmap_filename(float(self.timestamps[k]))
 
     def read_heatmaps(self, mmap: bool = True) -> HeatmapStack:
-        """The heat-maps of ``heatmaps/`` (see :func:`read_heatmaps`)."""
+        """The heat-maps of ``heatmaps/``, at the size of the first file (see
+        :func:`read_heatmaps`; their camera: :meth:`heatmap_camera`)."""
         hm_dir = self.root / HEATMAP_DIR
         kind = _kind(hm_dir)
         if kind is None:

@@ -89,9 +89,8 @@ class FileHeatmaps:
 def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
     """The camera of heat-maps detected from photos taken with ``camera``: the same, or
     resized to ``width`` px wide if it is wider (detection at a working resolution)."""
-    if camera.width <= width:
-        return camera
-    return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+    w, h = reduced_size(camera.width, camera.height, width)
+    return camera if (w, h) == (camera.width, camera.height) else camera.resized(w, h)
 
 
 class PhotoHeatmaps:
