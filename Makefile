@@ -35,12 +35,14 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
-## bench: accuracy and speed figures, fits on GPS/IMU and on odometry flights (writes benchmarks/results/*.json)
+## bench: accuracy and speed figures: fits on GPS/IMU and on odometry flights, 20 MP photos
+##        (writes benchmarks/results/*.json)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fit.py
 	$(BIN)/python benchmarks/bench_detect.py
 	$(BIN)/python benchmarks/bench_track.py
 	$(BIN)/python benchmarks/bench_odometry.py
+	$(BIN)/python benchmarks/bench_large.py
 
 ## bench-blender: the CNN on the same held-out views rendered by Blender's Cycles path tracer
 ##                (another renderer: does the net see turbines or its renderer's artefacts?);

@@ -315,6 +315,26 @@ class HeatmapDetector:
         zv = ndimage.map_coordinates(crop, [v[inside], u[inside]], order=1, mode="nearest")
         box[inside] = np.maximum(box[inside], zv)
 
+    def map_size(self, width: int, height: int) -> tuple[int, int]:
+        """(width, height) of the maps the net makes for a ``width`` x ``height`` photo
+        (:meth:`detect_small`: its model input size divided by ``output_scale``; 160 x
+        120 for a 4:3 photo and the shipped model). Pixel ``(j, i)`` of these maps is
+        photo pixel ``u = (j + 0.5) width / w - 0.5``, ``v = (i + 0.5) height / h - 0.5``
+        (the photo's camera :meth:`~turbinefit.geometry.camera.PinholeCamera.resized` to
+        them)."""
+        mw, mh = model_input_size(width, height, self.info)
+        s = self.info.output_scale
+        return mw // s, mh // s
+
+    @property
+    def photo_width(self) -> int:
+        """The widest a photo needs to be for this detector [px]: the model's input width,
+        times :data:`ZOOM_MAX` with test-time zoom (its crops see the photo enlarged up
+        to that). Wider photos can be decoded at this width
+        (:func:`turbinefit.io.images.read_image`'s ``reduce_to``) without losing
+        anything the net sees but rounding."""
+        return math.ceil(self.info.input_width * (ZOOM_MAX if self.zoom else 1.0))
+
     def detect_small(self, image: NDArray[np.uint8]) -> F32Array:
         """Heat-maps (7, h, w) at the model's output size of one RGB uint8 photo (the
         input size divided by ``output_scale``): flip-averaged if :attr:`flip`, the tip
@@ -465,17 +485,25 @@ def shift_tips(tip: F32Array, hub_uv: tuple[float, float], shift: float, taper: 
 
 
 def overlay(image: NDArray[np.uint8], maps: F32Array) -> NDArray[np.uint8]:
-    """The photo (H, W, 3), darkened, with heat-maps (7, H, W) blended in their
+    """The photo (H, W, 3), darkened, with heat-maps (7, h, w) blended in their
     :data:`CHANNEL_COLOURS`: the line channels first (each pixel in the colour of its
-    strongest line channel), then the point channels over them."""
-    if maps.shape[1:] != image.shape[:2]:
-        maps = resize_maps(maps, image.shape[1], image.shape[0])
-    out = image.astype(np.float32) * 0.6
+    strongest line channel), then the point channels over them.
+
+    The blend is ``photo * m + a`` with a factor ``m`` and a colour ``a`` computed at the
+    maps' pixels and enlarged to the photo's (bilinear, pixel centres aligned), so maps
+    smaller than the photo cost their own size, not the photo's; at the photo's size it
+    is the per-pixel blend itself."""
+    h, w = maps.shape[1:]
+    mult = np.full((h, w), 0.6, dtype=np.float32)
+    add = np.zeros((3, h, w), dtype=np.float32)
     for chans in ((4, 5, 6), (0, 1, 2, 3)):
         sub = maps[list(chans)]
-        alpha = np.clip(np.max(sub, axis=0), 0.0, 1.0)[..., None]
-        colour = CHANNEL_COLOURS[np.asarray(chans)[np.argmax(sub, axis=0)]]
-        out = out * (1.0 - alpha) + colour * alpha
+        alpha = np.clip(np.max(sub, axis=0), 0.0, 1.0)
+        colour = CHANNEL_COLOURS[np.asarray(chans)[np.argmax(sub, axis=0)]].transpose(2, 0, 1)
+        mult *= 1.0 - alpha
+        add = add * (1.0 - alpha) + colour * alpha
+    factors = resize_maps(np.concatenate([mult[None], add]), image.shape[1], image.shape[0])
+    out = image.astype(np.float32) * factors[0][..., None] + factors[1:].transpose(1, 2, 0)
     return np.clip(out, 0, 255).astype(np.uint8)
 
 

@@ -16,6 +16,9 @@ from turbinefit.io.images import read_image, write_png
 
 onnx = pytest.importorskip("onnx")
 
+#: The shipped net's maps of a 4:3 photo.
+NET = (160, 120)
+
 
 def test_detect_cli(tmp_path: Path, held_out_samples: list, detector: HeatmapDetector,
                     capsys: pytest.CaptureFixture[str]) -> None:
@@ -30,8 +33,9 @@ def test_detect_cli(tmp_path: Path, held_out_samples: list, detector: HeatmapDet
     assert main(["detect", str(photos), "--out", str(out), "--quiet", "--threads", "1"]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted([f"img{k}.{e}" for k in range(4) for e in ("npy", "png")])
-    maps = np.load(out / "img0.npy")
-    assert maps.shape == (7, 240, 320) and maps.dtype == np.float32
+    maps = np.load(out / "img0.npy")  # at the net's resolution: half the 320 x 240 photo
+    assert maps.shape == (7, 120, 160) and maps.dtype == np.float32
+    assert np.load(out / "img3.npy").shape == (7, 120, 160)
     assert read_image(out / "img0.png").shape == (240, 320, 3)
     # again without --overwrite: refused; with it: replaced
     assert main(["detect", str(photos), "--out", str(out), "--quiet"]) == 2
@@ -46,15 +50,17 @@ def test_detect_cli(tmp_path: Path, held_out_samples: list, detector: HeatmapDet
     img = read_image(photos / "img0.png")
     assert detector.flip
     np.testing.assert_allclose(np.load(plain / "img0.npy"),
-                               HeatmapDetector(threads=1, flip=False).detect(img), atol=1e-5)
-    np.testing.assert_allclose(np.load(out / "img0.npy"), detector.detect(img), atol=1e-5)
+                               HeatmapDetector(threads=1, flip=False).detect(img, NET),
+                               atol=1e-5)
+    np.testing.assert_allclose(np.load(out / "img0.npy"), detector.detect(img, NET), atol=1e-5)
     assert np.abs(np.load(plain / "img0.npy") - np.load(out / "img0.npy")).max() > 1e-3
     # --tip-shift 0: the net's own tip channel, as HeatmapDetector(tip_shift=0)
     own = tmp_path / "own"
     assert main(["detect", str(photos / "img0.png"), "--out", str(own), "--quiet",
                  "--tip-shift", "0"]) == 0
     np.testing.assert_allclose(np.load(own / "img0.npy"),
-                               HeatmapDetector(threads=1, tip_shift=0).detect(img), atol=1e-5)
+                               HeatmapDetector(threads=1, tip_shift=0).detect(img, NET),
+                               atol=1e-5)
     assert np.abs(np.load(own / "img0.npy")[3] - np.load(out / "img0.npy")[3]).max() > 1e-3
     # --no-zoom: no second pass on small turbines, as HeatmapDetector(zoom=False); a far
     # view (a render shrunk to half size amid its own sky) is zoomed by default
@@ -69,7 +75,7 @@ def test_detect_cli(tmp_path: Path, held_out_samples: list, detector: HeatmapDet
         d = tmp_path / f"far{len(flag)}"
         assert main(["detect", str(photos / "far.png"), "--out", str(d), "--quiet",
                      *flag]) == 0
-        np.testing.assert_allclose(np.load(d / "far.npy"), det.detect(far), atol=1e-5)
+        np.testing.assert_allclose(np.load(d / "far.npy"), det.detect(far, NET), atol=1e-5)
     assert np.abs(np.load(tmp_path / "far0" / "far.npy")[3]
                   - np.load(tmp_path / "far1" / "far.npy")[3]).max() > 1e-3
 
@@ -150,3 +156,34 @@ def test_detect_bad_input(tmp_path: Path, held_out_samples: list, capsys: pytest
     # the tiny 7-channel model is a valid (if useless) model
     assert main(["detect", str(good), "--out", str(out), "--quiet",
                  "--model", str(_tiny_model(tmp_path / "ok.onnx"))]) == 0
+
+
+def test_detect_large_jpeg_writes_small_maps_at_the_full_size_peaks(
+        tmp_path: Path, held_out_samples: list, detector: HeatmapDetector) -> None:
+    from PIL import Image
+
+    from turbinefit.io.images import resize_image
+
+    W, H = 2000, 1500
+    big = resize_image(held_out_samples[0].image, W, H)
+    Image.fromarray(big).save(tmp_path / "big.jpg", quality=92)
+    out = tmp_path / "det"
+    assert main(["detect", str(tmp_path / "big.jpg"), "--out", str(out), "--quiet",
+                 "--threads", "1"]) == 0
+    maps = np.load(out / "big.npy")
+    assert maps.shape == (7, 120, 160)
+    assert read_image(out / "big.png").shape == (480, 640, 3)  # the overlay, 640 wide
+    # the full-size maps of the fully decoded photo: their peaks are the small maps' peaks
+    # mapped to the photo, u = (j + 0.5) W / w - 0.5, to within the scale (12.5 px)
+    full = detector.detect(read_image(tmp_path / "big.jpg"))
+    assert full.shape == (7, H, W)
+    sx, sy = W / 160, H / 120
+    for c in range(3):  # base, tower top, hub
+        assert maps[c].max() > 0.5
+        i, j = np.unravel_index(np.argmax(maps[c]), maps[c].shape)
+        fi, fj = np.unravel_index(np.argmax(full[c]), full[c].shape)
+        assert abs((j + 0.5) * sx - 0.5 - fj) <= sx and abs((i + 0.5) * sy - 0.5 - fi) <= sy
+    # --max-size: wider maps of the same photo
+    assert main(["detect", str(tmp_path / "big.jpg"), "--out", str(tmp_path / "wide"),
+                 "--quiet", "--max-size", "400"]) == 0
+    assert np.load(tmp_path / "wide" / "big.npy").shape == (7, 300, 400)

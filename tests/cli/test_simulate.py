@@ -187,3 +187,21 @@ def test_simulate_vio_writes_body_frame_odometry_that_fit_and_track_use(
     rc, out, _ = run(capsys, "fit", str(sim_flight_dir), "--out", str(tmp_path / "gps"),
                      "--no-plots")
     assert rc == 0 and "pairwise frame: measured (GPS/IMU keyframes)\n" in out
+
+
+def test_simulate_heatmap_size(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "big"
+    rc, _, err = run(capsys, "simulate", str(out), "--keyframes", "2", "--width", "4000",
+                     "--height", "3000", "--quiet")
+    assert rc == 0, err
+    cam = yaml.safe_load((out / "camera.yaml").read_text())
+    assert (cam["image_width"], cam["image_height"]) == (4000, 3000)
+    assert np.load(next((out / "heatmaps").iterdir())).shape == (7, 240, 320)
+    for size, shape in (("200", (7, 150, 200)), ("400x300", (7, 300, 400))):
+        rc, _, err = run(capsys, "simulate", str(out), "--keyframes", "2", "--width", "4000",
+                         "--height", "3000", "--heatmap-size", size, "--overwrite", "--quiet")
+        assert rc == 0, err
+        assert np.load(next((out / "heatmaps").iterdir())).shape == shape
+    rc, out_text, err = run(capsys, "simulate", str(tmp_path / "x"), "--heatmap-size", "300x300")
+    assert_one_line_error(rc, out_text, err, "heatmap_size", "300x300")
+    assert not (tmp_path / "x").exists()

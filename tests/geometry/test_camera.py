@@ -54,3 +54,28 @@ def test_scaled_camera_keeps_pixel_centres():
     uv1 = CAMERA.project(p)[0]
     uv2 = cam.project(p)[0]
     np.testing.assert_allclose((uv2 + 0.5) / 2 - 0.5, uv1, atol=1e-9)
+
+
+def test_projection_at_a_reduced_size_is_the_full_size_projection_scaled():
+    # heat-maps smaller than the photo: pixel centres aligned, (u + 0.5) w / W - 0.5
+    cam = PinholeCamera(5280, 3956, 3770.0, 3772.0, 2641.3, 1975.2, 0.3,
+                        (-0.12, 0.03, 0.001, -0.002, 0.0))
+    rng = np.random.default_rng(7)
+    p = np.c_[rng.uniform(-2, 2, (200, 2)), rng.uniform(3, 10, 200)]
+    uv_full, _, J_full = cam.project_unbounded(p, with_jacobian=True)
+    for w, h in ((320, 240), (160, 120), (5280 // 3, 3956 // 3)):
+        small = cam.scaled_to(w, h)
+        assert small == cam.resized(w, h)
+        uv, _, J = small.project_unbounded(p, with_jacobian=True)
+        s = np.array([w / 5280, h / 3956])
+        np.testing.assert_allclose(uv, (uv_full + 0.5) * s - 0.5, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(J, J_full * s[:, None], rtol=1e-12, atol=1e-12)
+    assert cam.scaled_to(5280, 3956) is cam
+
+
+@pytest.mark.parametrize("size", [(320, 320), (100, 240), (5281, 3957), (0, 1)])
+def test_scaled_to_refuses_other_aspect_ratios_and_larger_sizes(size):
+    cam = PinholeCamera(640, 480, 500.0, 500.0, 319.5, 239.5)
+    with pytest.raises(ValueError, match=f"{size[0]}x{size[1]}"):
+        cam.scaled_to(*size)
+    assert cam.scaled_to(320, 241).height == 241  # within a pixel of the aspect ratio

@@ -162,7 +162,7 @@ def test_read_flight_inaccessible_path_is_an_input_error(flight_dir: Path, name:
             raise PermissionError(13, "Permission denied", str(path))
         return real_stat(path, *args, **kwargs)
 
-    monkeypatch.setattr(flight_folder.os, "stat", stat)
+    monkeypatch.setattr(os, "stat", stat)
     with raises_input_error(target) as info:
         read_flight(flight_dir)
     assert "cannot access: Permission denied" in str(info.value)

@@ -9,7 +9,15 @@ import pytest
 from PIL import Image
 
 from turbinefit.errors import InputError
-from turbinefit.io.images import check_image, list_images, read_image, write_png
+from turbinefit.io.images import (
+    check_image,
+    image_size,
+    list_images,
+    read_image,
+    reduced_size,
+    resize_image,
+    write_png,
+)
 
 
 def test_png_round_trip_and_modes(tmp_path: Path) -> None:
@@ -28,6 +36,33 @@ def test_png_round_trip_and_modes(tmp_path: Path) -> None:
     exif[0x0112] = 6
     Image.fromarray(img).save(tmp_path / "rot.jpg", exif=exif, quality=95)
     assert read_image(tmp_path / "rot.jpg").shape == (9, 7, 3)
+
+
+def test_jpeg_decoded_at_reduced_size(tmp_path: Path) -> None:
+    # a smooth 2000 x 1500 picture: a DCT-scaled decode matches the full decode resized
+    v, u = np.mgrid[0:1500, 0:2000].astype(np.float32)
+    img = np.dstack([u / 2000 * 255, v / 1500 * 255, 128 + 100 * np.sin(u / 90) * np.cos(v / 70)])
+    Image.fromarray(img.astype(np.uint8)).save(tmp_path / "big.jpg", quality=92)
+    assert image_size(tmp_path / "big.jpg") == (2000, 1500)
+    assert reduced_size(2000, 1500, 320) == (320, 240)
+    assert reduced_size(200, 150, 320) == (200, 150)
+    small = read_image(tmp_path / "big.jpg", reduce_to=(320, 240))
+    assert small.shape == (240, 320, 3) and small.dtype == np.uint8
+    full = resize_image(read_image(tmp_path / "big.jpg"), 320, 240)
+    assert np.abs(small.astype(int) - full.astype(int)).mean() < 2.0
+    with Image.open(tmp_path / "big.jpg") as im:  # Pillow decodes it at 1/4 (500 x 375)
+        im.draft("RGB", (320, 240))
+        assert im.size == (500, 375)
+    # PNG: no reduced decode, the full image as it is
+    write_png(tmp_path / "big.png", img.astype(np.uint8))
+    np.testing.assert_array_equal(read_image(tmp_path / "big.png", reduce_to=(320, 240)),
+                                  img.astype(np.uint8))
+    # EXIF orientation 6: the size asked for is the upright one
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(img.astype(np.uint8)).save(tmp_path / "rot.jpg", exif=exif, quality=92)
+    assert image_size(tmp_path / "rot.jpg") == (1500, 2000)
+    assert read_image(tmp_path / "rot.jpg", reduce_to=(150, 200)).shape == (200, 150, 3)
 
 
 def test_bad_files(tmp_path: Path) -> None:

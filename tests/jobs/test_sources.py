@@ -21,6 +21,47 @@ def test_wide_photos_are_detected_at_the_fit_width(tmp_path: Path) -> None:
     f = folder.flight(source.stack(), source.camera)
     assert (f.camera.width, f.camera.height) == (FIT_DETECT_WIDTH, 240)
     assert (f.heatmaps.height, f.heatmaps.width) == (240, FIT_DETECT_WIDTH)
-    full = read_flight(flight)
+    full = read_flight_folder(flight)
+    assert read_flight(flight).camera == f.camera  # the simulated maps are at 320 x 240 too
     assert f.camera.fx == pytest.approx(full.camera.fx / 2)
     assert f.camera.cx == pytest.approx((full.camera.cx + 0.5) / 2 - 0.5)
+
+
+def test_jpeg_photos_are_decoded_at_the_detector_width(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    import numpy as np
+    from PIL import Image
+
+    from turbinefit.errors import InputError
+    from turbinefit.io import images
+    from turbinefit.io.flight_folder import read_flight_folder
+    from turbinefit.jobs import sources
+    from turbinefit.jobs.sources import PhotoHeatmaps
+
+    flight = tmp_path / "f"
+    assert main(["simulate", str(flight), "--keyframes", "2", "--seed", "2", "--width", "1280",
+                 "--height", "960", "--images", "--quiet"]) == 0
+    for p in sorted((flight / "images").iterdir()):
+        Image.open(p).save(p.with_suffix(".jpg"), quality=93)
+        p.unlink()
+    asked = []
+
+    def read(path, reduce_to=None):
+        asked.append(reduce_to)
+        return images.read_image(path, reduce_to)
+
+    monkeypatch.setattr(sources, "read_image", read)
+    source = PhotoHeatmaps(read_flight_folder(flight), threads=1)
+    maps = source.keyframe(1)
+    assert asked == [(640, 480)] and maps.shape == (7, 240, 320)
+    det = source._detector
+    assert det is not None and det.photo_width == 640
+    full = det.detect(images.read_image(source.paths[1]), size=(320, 240))
+    assert np.abs(maps - full).max() < 0.25  # decoded at 640 px: the same maps but rounding
+    hub = [np.unravel_index(np.argmax(m[2]), m[2].shape) for m in (maps, full)]
+    assert np.abs(np.subtract(*hub)).max() <= 1
+    # a photo of another size than camera.yaml is refused before any detection
+    Image.new("RGB", (640, 480)).save(source.paths[0])
+    with pytest.raises(InputError, match=r"0\.000000\.jpg: photo is 640x480 but camera.yaml "
+                       r"is 1280x960"):
+        PhotoHeatmaps(read_flight_folder(flight), threads=1)

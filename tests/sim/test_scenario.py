@@ -108,3 +108,23 @@ def test_vio_flight_has_body_frame_odometry_and_the_same_scene():
         simulated_flight(4, odometry="wheel")
     with pytest.raises(ValueError, match="odometry_noise"):
         simulated_flight(4, odometry="vio", odometry_noise=-1.0)
+
+
+def test_a_large_camera_gets_small_heatmaps() -> None:
+    from turbinefit.sim.scenario import HEATMAP_WIDTH, SimConfig, simulate_flight
+
+    cfg = SimConfig(n_keyframes=2, width=5280, height=3956)
+    flight = simulate_flight(cfg)
+    assert (flight.heatmaps.width, flight.heatmaps.height) == (HEATMAP_WIDTH, 240)
+    assert flight.camera == cfg.camera().resized(320, 240)
+    assert cfg.render_config().sigma_px == SimConfig().render_config().sigma_px
+    # the same turbine seen at 320 x 240 directly: the maps agree to within rounding
+    small = simulate_flight(SimConfig(n_keyframes=2, width=320, height=240))
+    peak = [np.unravel_index(np.argmax(f.heatmaps[1][2]), (240, 320)) for f in (flight, small)]
+    assert np.abs(np.subtract(*peak)).max() <= 1
+    assert SimConfig(width=160, height=120).heatmap_camera() == SimConfig(
+        width=160, height=120).camera()
+    assert SimConfig(width=4000, height=3000, heatmap_size=(400, 300)).heatmap_camera(
+        ).width == 400
+    with pytest.raises(ValueError, match="heatmap_size"):
+        SimConfig(width=640, height=480, heatmap_size=(300, 300))

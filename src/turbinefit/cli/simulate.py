@@ -32,8 +32,12 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    "(see --list-presets)")
     s.add_argument("--turbine", default=None,
                    help="turbine preset name, or 'random' (default: the preset's)")
-    s.add_argument("--width", type=positive_int, default=None, help="heat-map width [px]")
-    s.add_argument("--height", type=positive_int, default=None, help="heat-map height [px]")
+    s.add_argument("--width", type=positive_int, default=None, help="camera (photo) width [px]")
+    s.add_argument("--height", type=positive_int, default=None,
+                   help="camera (photo) height [px]")
+    s.add_argument("--heatmap-size", type=heatmap_size, default=None, metavar="WxH|W",
+                   help="heat-map size [px], the camera's scaled (W alone: height to match); "
+                   "default: the camera's, at most 320 px wide")
     s.add_argument("--drift-m", type=number, default=None,
                    help="order of the GPS/IMU position drift over the flight [m]")
     s.add_argument("--drift-deg", type=number, default=None,
@@ -57,6 +61,20 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help="replace OUT_DIR if it exists (only if it holds nothing but a flight)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     return s
+
+
+def heatmap_size(text: str) -> tuple[int, int | None]:
+    """``WxH`` or ``W`` [px] (argparse type): (W, H), or (W, None) for the height that
+    keeps the camera's aspect ratio."""
+    parts = text.lower().split("x")
+    try:
+        if len(parts) > 2:
+            raise ValueError
+        w, h = positive_int(parts[0]), positive_int(parts[1]) if len(parts) == 2 else None
+    except (ValueError, argparse.ArgumentTypeError):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT or WIDTH in pixels, got "
+                                         f"{text!r}") from None
+    return w, h
 
 
 def sim_config(args: argparse.Namespace) -> SimConfig:
@@ -92,6 +110,12 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
                         ("--heatmap-noise", args.heatmap_noise)):
         if value is not None and not (math.isfinite(value) and value >= 0):
             raise InputError(f"must be a non-negative number, got {value}", field=flag)
+    if args.heatmap_size is not None:
+        w, h = args.heatmap_size
+        if h is None:
+            cam_w, cam_h = over.get("width", base.width), over.get("height", base.height)
+            h = max(1, round(cam_h * w / cam_w))
+        over["heatmap_size"] = (w, h)
     try:
         cfg = dataclasses.replace(base, **over)
         HeatmapNoise(**dataclasses.asdict(cfg.heatmap_noise))

@@ -112,6 +112,27 @@ class PinholeCamera:
             (self.cy + 0.5) * sy - 0.5, self.skew * sx, self.distortion,
         )
 
+    def scaled_to(self, width: int, height: int) -> PinholeCamera:
+        """The camera of this camera's images scaled down to ``width`` x ``height`` [px]
+        (e.g. heat-maps smaller than the photos): itself at its own size, else
+        :meth:`resized` (pixel centres aligned: pixel ``u`` of the scaled image is
+        ``(u + 0.5) W / w - 0.5`` of this camera's, the same in v).
+
+        Raises:
+            ValueError: if the size is larger than the camera's, or not its size scaled by
+                one factor up to rounding (h within a pixel of ``H w / W``, or w of
+                ``W h / H``).
+        """
+        W, H, w, h = self.width, self.height, int(width), int(height)
+        if (w, h) == (W, H):
+            return self
+        if not (1 <= w <= W and 1 <= h <= H):
+            raise ValueError(f"{w}x{h} is not inside the camera's {W}x{H}")
+        if abs(h - H * w / W) > 1 and abs(w - W * h / H) > 1:
+            raise ValueError(f"{w}x{h} is not the camera's {W}x{H} scaled (aspect ratio "
+                             f"{w / h:.4g}, camera {W / H:.4g})")
+        return self.resized(w, h)
+
     def in_image(self, uv: FloatArray, margin: float = 0.0) -> NDArray[np.bool_]:
         """Whether pixels lie inside the image (pixel centres ``0 .. W-1``, ``0 .. H-1``)."""
         return (

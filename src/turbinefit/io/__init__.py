@@ -6,6 +6,8 @@ Formats, frames and units are described in each module's docstring:
 * :mod:`turbinefit.io.camera_yaml` - ROS camera_info / OpenCV FileStorage intrinsics.
 * :mod:`turbinefit.io.turbine_yaml` - the seven turbine parameters (metres, radians).
 * :mod:`turbinefit.io.flight_folder` - a whole flight (the above plus ``heatmaps/*.npy``).
+* :mod:`turbinefit.io.heatmap_files` - the ``heatmaps/*.npy`` files, at their own size.
+* :mod:`turbinefit.io.images` - photos (reduced JPEG decoding, PNG writing, resizing).
 * :mod:`turbinefit.io.atomic` - atomic file and directory output.
 * :mod:`turbinefit.io.yaml_files` - strict YAML parsing shared by the YAML formats.
 
@@ -18,10 +20,10 @@ from turbinefit.io.atomic import write_bytes_atomic as write_bytes_atomic
 from turbinefit.io.atomic import write_text_atomic as write_text_atomic
 from turbinefit.io.camera_yaml import read_camera_yaml as read_camera_yaml
 from turbinefit.io.camera_yaml import write_camera_yaml as write_camera_yaml
-from turbinefit.io.flight_folder import heatmap_filename as heatmap_filename
 from turbinefit.io.flight_folder import read_flight as read_flight
-from turbinefit.io.flight_folder import read_heatmaps as read_heatmaps
 from turbinefit.io.flight_folder import write_flight as write_flight
+from turbinefit.io.heatmap_files import heatmap_filename as heatmap_filename
+from turbinefit.io.heatmap_files import read_heatmaps as read_heatmaps
 from turbinefit.io.tum import read_tum as read_tum
 from turbinefit.io.tum import write_tum as write_tum
 from turbinefit.io.turbine_yaml import read_turbine_yaml as read_turbine_yaml

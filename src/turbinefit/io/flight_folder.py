@@ -19,12 +19,21 @@ Layout (names exact)::
   timestamps as ``keyframes.txt`` (each within 1e-6 s).
 * Turbine: metres and radians (see :mod:`turbinefit.io.turbine_yaml`).
 * Heat-maps: ``heatmaps/<timestamp formatted %.6f>.npy`` (e.g. ``12.500000.npy``), a
-  C-ordered little-endian float32 ``.npy`` array (7, H, W), H x W = ``image_height`` x
-  ``image_width`` of ``camera.yaml``, channels in the order of
+  C-ordered little-endian float32 ``.npy`` array (7, h, w), channels in the order of
   :data:`turbinefit.heatmaps.CHANNEL_NAMES`. Other files in ``heatmaps/`` are ignored.
   Values are not checked when reading (that would read the data).
+* Heat-map size: every file of a flight has the same (h, w), read from the first file's
+  header; it may be smaller than the photos of ``camera.yaml`` (W x H), and then fixes
+  the scale: the flight's camera is ``camera.yaml``'s resized to w x h
+  (:meth:`~turbinefit.geometry.camera.PinholeCamera.resized`, each axis on its own,
+  pixel centres aligned): map pixel ``(j, i)`` covers photo pixels around
+  ``u = (j + 0.5) W / w - 0.5``, ``v = (i + 0.5) H / h - 0.5``, so fx, cx scale as
+  ``fx w / W``, ``(cx + 0.5) w / W - 0.5`` (the same in y with h / H). Maps at the
+  photos' size (h, w = H, W) use ``camera.yaml`` as it is. The size must be the photos'
+  scaled by one factor up to rounding (h within a pixel of ``H w / W``, or w of
+  ``W h / H``) and no larger than the photos.
 * Images: ``images/<timestamp formatted %.6f>.png`` (or ``.jpg`` / ``.jpeg``), the
-  keyframe's photo at the size of ``camera.yaml``. A flight with ``images/`` but no
+  keyframe's photo at the size of ``camera.yaml`` (the photos' camera). A flight with ``images/`` but no
   ``heatmaps/`` is read with heat-maps detected from the photos: :func:`read_flight_folder`
   reads the rest, :func:`keyframe_images` finds the photos, and
   :mod:`turbinefit.jobs.sources` detects them.
@@ -38,8 +47,8 @@ process's soft open-file limit is raised towards the hard limit when a flight ne
 
 Every problem is an :class:`~turbinefit.errors.InputError` naming the file (and line or
 field): missing folder or required file, malformed content, a keyframe without its
-heat-map file, a heat-map of the wrong shape or dtype, or a file that is not a valid
-``.npy``.
+heat-map file, a heat-map of the wrong shape or dtype (or of another size than the first,
+or not a scale of ``camera.yaml``), or a file that is not a valid ``.npy``.
 
 :func:`write_flight` writes the whole folder atomically (see
 :func:`turbinefit.io.atomic.atomic_output_dir`): into a hidden temporary sibling, renamed
@@ -52,17 +61,11 @@ check up front.
 
 from __future__ import annotations
 
-import errno
-import io
-import math
-import os
-import stat
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.lib import format as npy_format
 from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
@@ -72,12 +75,19 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
 from turbinefit.io.atomic import StrPath, atomic_output_dir, check_output_dir, write_text_atomic
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
+from turbinefit.io.heatmap_files import (
+    CAMERA_FILE,
+    _kind,
+    heatmap_filename,
+    keyframe_stem,
+    read_heatmaps,
+    scaled_camera,
+)
 from turbinefit.io.images import IMAGE_SUFFIXES
 from turbinefit.io.tum import TumTrajectory, format_tum, read_tum_lines
 from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
 from turbinefit.turbine.model import TurbineParams
 
-CAMERA_FILE = "camera.yaml"
 KEYFRAMES_FILE = "keyframes.txt"
 ODOMETRY_FILE = "odometry.txt"
 TURBINE_FILE = "turbine.yaml"
@@ -96,191 +106,7 @@ _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_F
                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
 #: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
 TIMESTAMP_TOLERANCE = 1e-6
-
-_NPY_MAGIC = b"\x93NUMPY"
-_HEATMAP_DTYPE = np.dtype("<f4")
-
-
-def keyframe_stem(timestamp: float) -> str:
-    """The name of a keyframe's files without suffix, ``'%.6f' % timestamp``."""
-    return f"{timestamp:.6f}"
-
-
-def heatmap_filename(timestamp: float) -> str:
-    """The file name of a keyframe's heat-maps, ``'%.6f.npy' % timestamp``."""
-    return keyframe_stem(timestamp) + ".npy"
-
-
-# --------------------------------------------------------------------------- heat-maps
-
-_Header = tuple[tuple[int, ...], bool, np.dtype]
-
-
-def _read_npy_header(f: io.RawIOBase, fname: str,
-                     cache: dict[bytes, _Header]) -> tuple[_Header, int]:
-    """Parse a ``.npy`` header from an open file; returns (shape, fortran, dtype), offset."""
-    head = f.read(512) or b""
-    if len(head) < 10 or not head.startswith(_NPY_MAGIC):
-        raise InputError("not a .npy file (bad magic bytes)", path=Path(fname))
-    major = head[6]
-    if major == 1:
-        offset = 10 + int.from_bytes(head[8:10], "little")
-    elif major == 2:
-        offset = 12 + int.from_bytes(head[8:12], "little")
-    else:
-        raise InputError(f"unsupported .npy format version {major}.{head[7]}", path=Path(fname))
-    if len(head) < offset:
-        f.seek(0)
-        head = f.read(offset) or b""
-        if len(head) < offset:
-            raise InputError("truncated .npy header", path=Path(fname))
-    key = head[:offset]
-    parsed = cache.get(key)
-    if parsed is None:
-        stream = io.BytesIO(key[8:])
-        try:
-            if major == 1:
-                shape, fortran, dtype = npy_format.read_array_header_1_0(stream)
-            else:
-                shape, fortran, dtype = npy_format.read_array_header_2_0(stream)
-        except Exception as e:  # ValueError, SyntaxError, tokenize.TokenError, ...
-            raise InputError(f"invalid .npy header: {e}", path=Path(fname)) from e
-        parsed = (tuple(int(n) for n in shape), bool(fortran), np.dtype(dtype))
-        cache[key] = parsed
-    return parsed, offset
-
-
-def _check_heatmap(header: _Header, offset: int, size: int, shape: tuple[int, ...],
-                   fname: str) -> None:
-    got_shape, fortran, dtype = header
-    if dtype != _HEATMAP_DTYPE:
-        raise InputError(f"dtype {dtype.str}, expected float32 (<f4)", path=Path(fname))
-    if got_shape != shape:
-        raise InputError(f"shape {got_shape}, expected {shape} (7 channels x image_height x "
-                         "image_width of camera.yaml)", path=Path(fname))
-    if fortran:
-        raise InputError("array is Fortran-ordered; save it C-ordered "
-                         "(np.save(path, np.ascontiguousarray(a)))", path=Path(fname))
-    need = offset + math.prod(shape) * dtype.itemsize
-    if size < need:
-        raise InputError(f"truncated: {size} bytes, expected {need}", path=Path(fname))
-
-
-def _raise_open_file_limit(extra: int) -> None:
-    """Make room for ``extra`` more open files: raise the soft RLIMIT_NOFILE (at most to
-    the hard limit) if the descriptors already open plus ``extra`` exceed it."""
-    try:
-        import resource
-    except ImportError:  # pragma: no cover - not on Unix
-        return
-    try:
-        in_use = len(os.listdir("/proc/self/fd"))
-    except OSError:  # not Linux: assume a few hundred
-        in_use = 256
-    needed = in_use + extra
-    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-    if soft == resource.RLIM_INFINITY or soft >= needed:
-        return
-    target = needed if hard == resource.RLIM_INFINITY else min(needed, hard)
-    try:
-        resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
-    except (ValueError, OSError):  # pragma: no cover - e.g. macOS caps at OPEN_MAX
-        pass
-
-
-def _os_error(e: OSError, n: int, fname: str) -> InputError:
-    if e.errno in (errno.EMFILE, errno.ENFILE):
-        return InputError(f"too many open files: memory-mapping {n} heat-maps needs one file "
-                          "descriptor each; raise the limit (ulimit -n) or read with mmap=False",
-                          path=Path(fname))
-    return InputError(f"cannot read: {e.strerror or e}", path=Path(fname))
-
-
-def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int, width: int,
-                  mmap: bool = True, keyframes_file: StrPath | None = None,
-                  keyframe_lines: ArrayLike | None = None) -> HeatmapStack:
-    """Open ``folder/<%.6f timestamp>.npy`` for every timestamp (see module docstring).
-
-    Args:
-        folder: the ``heatmaps`` directory.
-        timestamps: (N,) keyframe timestamps [s].
-        height, width: expected image size [px].
-        mmap: map files read-only (default) or load all into one (N, 7, H, W) array.
-        keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
-
-    Raises:
-        InputError: naming the heat-map file that is missing or invalid.
-    """
-    import mmap as mmap_module
-
-    folder = Path(folder)
-    t = np.asarray(timestamps, dtype=np.float64)
-    lines = None if keyframe_lines is None else np.asarray(keyframe_lines).tolist()
-    kind = _kind(folder)
-    if kind is None:
-        raise InputError("heat-map directory not found", path=folder)
-    if kind != "dir":
-        raise InputError("not a directory (expected the heat-map folder)", path=folder)
-    shape = (NUM_CHANNELS, int(height), int(width))
-    names = [heatmap_filename(x) for x in t.tolist()]
-    if len(set(names)) != len(names):
-        raise InputError("two keyframe timestamps have the same %.6f text, so they would "
-                         "share a heat-map file", path=keyframes_file or folder)
-    cache: dict[bytes, _Header] = {}
-    stacked = None
-    maps: list[NDArray[np.float32]] = []
-    if mmap:
-        _raise_open_file_limit(len(names) + 64)
-    else:
-        stacked = np.empty((len(names), *shape), dtype=np.float32)
-    base = os.fspath(folder)
-    for k, name in enumerate(names):
-        fname = os.path.join(base, name)
-        try:
-            f = open(fname, "rb", buffering=0)  # closed by the with below
-        except FileNotFoundError:
-            where = f"keyframe {k}, timestamp {name[:-4]}"
-            if keyframes_file is not None:
-                line = f", line {lines[k]}" if lines is not None else ""
-                where += f" ({Path(keyframes_file).name}{line})"
-            raise InputError(f"heat-map file missing for {where}", path=Path(fname)) from None
-        except OSError as e:
-            raise _os_error(e, len(names), fname) from e
-        with f:
-            try:
-                header, offset = _read_npy_header(f, fname, cache)
-                _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname)
-                if stacked is None:
-                    mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
-                    maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
-                else:
-                    f.seek(offset)
-                    view = memoryview(stacked[k]).cast("B")
-                    done = 0
-                    while done < view.nbytes:
-                        n = f.readinto(view[done:])
-                        if not n:
-                            raise InputError("truncated", path=Path(fname))
-                        done += n
-            except OSError as e:
-                raise _os_error(e, len(names), fname) from e
-    return HeatmapStack(stacked if stacked is not None else maps)
-
-
 # --------------------------------------------------------------------------- flight
-
-def _kind(path: Path) -> str | None:
-    """``"dir"``, ``"file"`` (anything else that exists) or None (missing), following
-    symbolic links; a path that cannot be inspected (a parent directory without search
-    permission, a symbolic-link loop) is an InputError, not a "missing" or a traceback."""
-    try:
-        st = os.stat(path)
-    except (FileNotFoundError, NotADirectoryError):
-        return None
-    except OSError as e:
-        raise InputError(f"cannot access: {e.strerror or e}", path=path) from e
-    return "dir" if stat.S_ISDIR(st.st_mode) else "file"
-
 
 def _required(path: Path) -> Path:
     if _kind(path) is None:
@@ -367,21 +193,37 @@ class FlightFolder:
         return self.root / HEATMAP_DIR / heatmap_filename(float(self.timestamps[k]))
 
     def read_heatmaps(self, mmap: bool = True) -> HeatmapStack:
-        """The heat-maps of ``heatmaps/`` (see :func:`read_heatmaps`)."""
+        """The heat-maps of ``heatmaps/``, at the size of the first file (see
+        :func:`read_heatmaps`; their camera: :meth:`heatmap_camera`)."""
         hm_dir = self.root / HEATMAP_DIR
         kind = _kind(hm_dir)
         if kind is None:
             raise InputError("required heat-map directory of a flight folder is missing (or "
                              f"give photos in {IMAGE_DIR}/ to detect them)", path=hm_dir)
-        return read_heatmaps(hm_dir, self.timestamps, self.camera.height, self.camera.width,
-                             mmap=mmap, keyframes_file=self.root / KEYFRAMES_FILE,
+        return read_heatmaps(hm_dir, self.timestamps, mmap=mmap,
+                             keyframes_file=self.root / KEYFRAMES_FILE,
                              keyframe_lines=self.keyframes.lines)
+
+    def heatmap_camera(self, heatmaps: HeatmapStack) -> PinholeCamera:
+        """The camera of the heat-maps' pixel grid: ``camera.yaml``'s scaled to their size
+        (:func:`scaled_camera`).
+
+        Raises:
+            InputError: naming the first heat-map file (or the folder) if their size is not
+                a scale of ``camera.yaml``'s.
+        """
+        try:
+            return scaled_camera(self.camera, heatmaps.width, heatmaps.height)
+        except ValueError as e:
+            first = self.heatmap_path(0)
+            raise InputError(str(e), path=first if _kind(first) else self.root) from None
 
     def flight(self, heatmaps: HeatmapStack, camera: PinholeCamera | None = None) -> Flight:
         """The :class:`Flight` with these heat-maps, whose pixel grid is ``camera`` (default:
-        ``camera.yaml``'s; e.g. the photo's camera resized to the detection size)."""
+        ``camera.yaml``'s scaled to the maps' size, :meth:`heatmap_camera`)."""
         try:
-            return Flight(camera=camera or self.camera, timestamps=self.timestamps,
+            return Flight(camera=camera or self.heatmap_camera(heatmaps),
+                          timestamps=self.timestamps,
                           world_T_cam=self.keyframes.poses, heatmaps=heatmaps,
                           turbine=self.turbine, odometry=self.odometry,
                           gt_world_T_cam=self.gt_world_T_cam, gt_turbine=self.gt_turbine)
@@ -426,7 +268,7 @@ def read_flight(folder: StrPath, mmap: bool = True,
         mmap: memory-map the heat-maps (default; only headers are read) or load them into
             one (N, 7, H, W) float32 array.
         heatmaps: None = read ``heatmaps/``; else the heat-maps to use instead (one per
-            keyframe, at the camera's size). Heat-maps detected from ``images/`` come from
+            keyframe, at the camera's size or a scale of it). Heat-maps detected from ``images/`` come from
             :class:`turbinefit.jobs.sources.PhotoHeatmaps` (see
             :func:`turbinefit.jobs.sources.open_heatmaps`).
 
@@ -474,7 +316,8 @@ def check_flight_destination(folder: StrPath, overwrite: bool = False,
 def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  camera_name: str = "turbinefit",
                  extra_texts: Mapping[str, str] | None = None,
-                 images: Iterable[NDArray[np.uint8]] | None = None) -> Path:
+                 images: Iterable[NDArray[np.uint8]] | None = None,
+                 camera: PinholeCamera | None = None) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
@@ -494,9 +337,13 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             must be one of :data:`FLIGHT_ENTRIES` that the flight does not provide (i.e.
             ``simulation.yaml``), so that a folder ``write_flight`` wrote can always be
             replaced by it.
-        images: the keyframes' photos, RGB uint8 (H, W, 3) at the camera's size, in
+        images: the keyframes' photos, RGB uint8 (H, W, 3) at the size of ``camera``, in
             keyframe order (e.g. a generator: each is encoded and dropped), written as
             ``images/<t>.png``.
+        camera: the photos' camera, written to ``camera.yaml``; None = ``flight.camera``
+            (maps at the photos' size). The flight's heat-maps may be smaller: then
+            ``flight.camera`` must be ``camera`` scaled to them (:func:`scaled_camera`),
+            so that reading the folder back gives the same flight.
 
     Returns:
         The folder written.
@@ -506,6 +353,11 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
     """
     root = Path(folder)
     n = flight.num_keyframes
+    photo_camera = camera or flight.camera
+    if not _same_camera(scaled_camera(photo_camera, flight.camera.width, flight.camera.height),
+                        flight.camera):
+        raise ValueError(f"the flight's camera is not the {photo_camera.width}x"
+                         f"{photo_camera.height} photo camera scaled to its heat-maps")
     shape = (NUM_CHANNELS, flight.camera.height, flight.camera.width)
     if len(flight.heatmaps) != n or (flight.heatmaps.height, flight.heatmaps.width) != shape[1:]:
         raise InputError(f"{len(flight.heatmaps)} heat-maps of {flight.heatmaps.height}x"
@@ -513,7 +365,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                          f"{shape[2]}x{shape[1]} camera", path=root / HEATMAP_DIR)
     # Format (and so validate) all text before touching the disk; errors name final paths.
     texts = {
-        CAMERA_FILE: format_camera_yaml(flight.camera, camera_name),
+        CAMERA_FILE: format_camera_yaml(photo_camera, camera_name),
         KEYFRAMES_FILE: format_tum(flight.timestamps, flight.world_T_cam, root / KEYFRAMES_FILE,
                                    "keyframe poses world_T_cam (camera-to-world)"),
         TURBINE_FILE: format_turbine_yaml(flight.turbine, "initial turbine parameters",
@@ -551,16 +403,23 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                 raise InputError(f"cannot write: {e.strerror or e}",
                                  path=root / HEATMAP_DIR / heatmap_filename(t)) from e
         if images is not None:
-            _write_images(tmp / IMAGE_DIR, root / IMAGE_DIR, flight, images)
+            _write_images(tmp / IMAGE_DIR, root / IMAGE_DIR, flight, images, photo_camera)
     return root
 
 
+def _same_camera(a: PinholeCamera, b: PinholeCamera) -> bool:
+    """Whether two cameras agree (size, distortion; intrinsics to 1e-9 relative)."""
+    ka, kb = (np.array([c.fx, c.fy, c.cx, c.cy, c.skew]) for c in (a, b))
+    return ((a.width, a.height, a.distortion) == (b.width, b.height, b.distortion)
+            and bool(np.allclose(ka, kb, rtol=1e-9, atol=1e-9)))
+
+
 def _write_images(tmp_dir: Path, final_dir: Path, flight: Flight,
-                  images: Iterable[NDArray[np.uint8]]) -> None:
+                  images: Iterable[NDArray[np.uint8]], camera: PinholeCamera) -> None:
     from turbinefit.io.images import encode_png
 
     tmp_dir.mkdir()
-    want = (flight.camera.height, flight.camera.width, 3)
+    want = (camera.height, camera.width, 3)
     count = 0
     for t, img in zip(flight.timestamps.tolist(), images, strict=False):
         name = keyframe_stem(t) + ".png"

@@ -6,6 +6,15 @@ decodes and encodes (PNG, JPEG and whatever else it reads); grey, palette, 16-bi
 alpha images are converted to 8-bit RGB, and EXIF orientation is applied, so a photo is
 seen the way a viewer shows it.
 
+A JPEG photo that is only used at a reduced size is decoded at that size:
+``read_image(path, reduce_to=(w, h))`` asks Pillow for a DCT-scaled decode
+(:meth:`PIL.Image.Image.draft`: 1/2, 1/4 or 1/8 of the size, the smallest scale that is
+still at least ``w`` x ``h``; a 20 MP JPEG decodes several times faster at 1/4, in a
+sixteenth of the memory) and then resizes exactly to ``w`` x ``h`` (:func:`resize_image`).
+Other formats (PNG) have no such decode and are read at full size as they are, so their
+pixels do not change. :func:`image_size` gives the upright size from the header, to
+choose ``reduce_to`` with (:func:`reduced_size`).
+
 Resizing (:func:`resize_image`) uses Pillow's resampling, which keeps pixel centres
 aligned (the convention of :meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and
 low-pass filters when it shrinks (an area-weighted triangle filter), so a downsized photo
@@ -56,8 +65,24 @@ def _image_errors(p: Path) -> Iterator[None]:
         raise InputError(f"cannot decode image: {e}", path=p) from e
 
 
-def read_image(path: StrPath) -> U8Image:
-    """Read an image file as RGB uint8 (H, W, 3).
+#: EXIF orientations that swap width and height (a rotation by 90 degrees).
+_TRANSPOSING = frozenset({5, 6, 7, 8})
+
+
+def _swaps_axes(im: Image.Image) -> bool:
+    """Whether the image's EXIF orientation turns it by 90 degrees."""
+    try:
+        return int(im.getexif().get(0x0112, 1)) in _TRANSPOSING
+    except Exception:  # a broken EXIF block: exif_transpose ignores it too
+        return False
+
+
+def read_image(path: StrPath, reduce_to: tuple[int, int] | None = None) -> U8Image:
+    """Read an image file as RGB uint8 (H, W, 3), upright (EXIF orientation applied).
+
+    ``reduce_to`` = (width, height): a JPEG is decoded at the smallest DCT scale (1/1,
+    1/2, 1/4, 1/8) that is at least that large and resized to exactly that size (module
+    docstring); other formats are read at their full size. None = full size.
 
     Raises:
         InputError: naming the file if it is missing, unreadable or not an image Pillow
@@ -65,13 +90,42 @@ def read_image(path: StrPath) -> U8Image:
     """
     p = Path(path)
     with _image_errors(p), Image.open(p) as im:
+        jpeg = reduce_to is not None and im.format == "JPEG"
+        if reduce_to is not None and jpeg:
+            w, h = (reduce_to[1], reduce_to[0]) if _swaps_axes(im) else reduce_to
+            im.draft("RGB", (int(w), int(h)))
         im.load()
         upright: Image.Image = ImageOps.exif_transpose(im) or im
         rgb = upright.convert("RGB")
+        if reduce_to is not None and jpeg and rgb.size != tuple(reduce_to) and min(rgb.size):
+            # as resize_image does, without a round trip through numpy
+            rgb = rgb.resize((int(reduce_to[0]), int(reduce_to[1])), Image.Resampling.BILINEAR)
     arr = np.asarray(rgb, dtype=np.uint8)
     if arr.ndim != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise InputError(f"image has no pixels (shape {arr.shape})", path=p)
     return np.ascontiguousarray(arr)
+
+
+def image_size(path: StrPath) -> tuple[int, int]:
+    """(width, height) of an image file as :func:`read_image` returns it (upright: EXIF
+    orientation applied), from its header, without decoding the pixels.
+
+    Raises:
+        InputError: as :func:`read_image`, for a missing file or one that is not an image.
+    """
+    p = Path(path)
+    with _image_errors(p), Image.open(p) as im:
+        w, h = int(im.width), int(im.height)
+        return (h, w) if _swaps_axes(im) else (w, h)
+
+
+def reduced_size(width: int, height: int, max_width: int) -> tuple[int, int]:
+    """The size of a ``width`` x ``height`` image scaled to at most ``max_width`` px wide
+    (aspect ratio kept, height rounded, at least 1): the image's own size if it is not
+    wider."""
+    if width <= max_width:
+        return int(width), int(height)
+    return int(max_width), max(1, round(height * max_width / width))
 
 
 def check_image(path: StrPath) -> tuple[int, int]:
@@ -85,11 +139,12 @@ def check_image(path: StrPath) -> tuple[int, int]:
         return int(im.width), int(im.height)
 
 
-def encode_png(image: U8Image) -> bytes:
-    """PNG bytes of an RGB uint8 (H, W, 3) image."""
+def encode_png(image: U8Image, compress_level: int = 3) -> bytes:
+    """PNG bytes of an RGB uint8 (H, W, 3) image (zlib ``compress_level`` 0-9: 1 is
+    fastest, a few per cent larger than 3)."""
     buf = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB").save(
-        buf, format="PNG", compress_level=3)
+        buf, format="PNG", compress_level=compress_level)
     return buf.getvalue()
 
 

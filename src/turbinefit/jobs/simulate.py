@@ -27,7 +27,9 @@ def simulate_folder(
     folder with ground truth; the resolved simulation settings go to ``simulation.yaml``.
     With ``images``, photos of every keyframe rendered from the ground truth
     (:func:`turbinefit.sim.images.render_flight_images`, scene from the seed) go to
-    ``images/<t>.png``.
+    ``images/<t>.png``. ``camera.yaml`` is the photos' camera (:meth:`SimConfig.camera`),
+    the heat-maps are at their own size (:attr:`SimConfig.heatmap_size`: by default at
+    most 320 px wide whatever the camera).
 
     The whole folder, ``simulation.yaml`` included, is written atomically. ``out_dir`` is
     checked before simulating: a file or symbolic link is refused, and an existing
@@ -43,10 +45,10 @@ def simulate_folder(
         from turbinefit.sim.images import render_flight_images
 
         assert flight.gt_world_T_cam is not None and flight.gt_turbine is not None
-        photos = render_flight_images(flight.camera, flight.gt_world_T_cam,
+        photos = render_flight_images(cfg.camera(), flight.gt_world_T_cam,
                                       flight.gt_turbine.to_vector(), cfg.seed, cfg.geometry,
                                       progress=progress)
     write_flight(flight, out, overwrite=overwrite,
                  extra_texts={SIMULATION_FILE: yaml.safe_dump(settings, sort_keys=False)},
-                 images=photos)
+                 images=photos, camera=cfg.camera())
     return out

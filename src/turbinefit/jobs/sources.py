@@ -26,7 +26,7 @@ from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
-from turbinefit.io.images import check_image, read_image
+from turbinefit.io.images import image_size, read_image, reduced_size
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
@@ -79,7 +79,9 @@ class HeatmapSource(Protocol):
 
 class FileHeatmaps:
     """The heat-maps of a flight folder's ``heatmaps/`` (memory-mapped: only the ``.npy``
-    headers are read until pixels are touched)."""
+    headers are read until pixels are touched), at their own size: :attr:`camera` is
+    ``camera.yaml``'s scaled to it
+    (:meth:`~turbinefit.io.flight_folder.FlightFolder.heatmap_camera`)."""
 
     description = "heatmaps/"
     fit_defaults: Mapping[str, Any] = MappingProxyType({})
@@ -87,8 +89,8 @@ class FileHeatmaps:
 
     def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
         self.folder = folder
-        self.camera = folder.camera
         self._stack = folder.read_heatmaps(mmap)
+        self.camera = folder.heatmap_camera(self._stack)
 
     def __len__(self) -> int:
         return len(self._stack)
@@ -106,9 +108,8 @@ class FileHeatmaps:
 def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
     """The camera of heat-maps detected from photos taken with ``camera``: the same, or
     resized to ``width`` px wide if it is wider (detection at a working resolution)."""
-    if camera.width <= width:
-        return camera
-    return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+    w, h = reduced_size(camera.width, camera.height, width)
+    return camera if (w, h) == (camera.width, camera.height) else camera.resized(w, h)
 
 
 class PhotoHeatmaps:
@@ -117,7 +118,11 @@ class PhotoHeatmaps:
 
     Photos must be at the size of ``camera.yaml``; their maps are made at that size, or at
     ``width`` px wide (camera resized to match, :func:`detection_camera`) if the camera is
-    wider. Every photo's header is checked when the source is made, before any work.
+    wider. Every photo's header (format and size) is checked when the source is made,
+    before any work. A JPEG wider than the detector uses
+    (:attr:`~turbinefit.detect.HeatmapDetector.photo_width`, 640 px for the shipped model)
+    is decoded at that width (DCT-scaled, :func:`turbinefit.io.images.read_image`); other
+    photos are decoded in full.
     :meth:`stack` detects ``threads`` photos at once, one inference thread each
     (:class:`~turbinefit.detect.DetectorPool`; None = one per core); :meth:`keyframe`
     detects one photo with one detector that does not spin-wait (the tracker's solver
@@ -128,9 +133,12 @@ class PhotoHeatmaps:
                  options: DetectOptions | None = None, *, width: int = FIT_DETECT_WIDTH,
                  threads: int | None = None) -> None:
         self.paths = keyframe_images(folder.root, folder.timestamps)
+        cam = self.photo_camera = folder.camera
         for p in self.paths:  # headers only, before any work
-            check_image(p)
-        self.photo_camera = folder.camera
+            w, h = image_size(p)
+            if (w, h) != (cam.width, cam.height):
+                raise InputError(f"photo is {w}x{h} but camera.yaml is {cam.width}x{cam.height}",
+                                 path=p)
         self.camera = detection_camera(folder.camera, width)
         from turbinefit.detect import DetectOptions
 
@@ -150,11 +158,8 @@ class PhotoHeatmaps:
         return self.paths[k]
 
     def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
-        img = read_image(path)
         cam = self.photo_camera
-        if img.shape[:2] != (cam.height, cam.width):
-            raise InputError(f"photo is {img.shape[1]}x{img.shape[0]} but camera.yaml is "
-                             f"{cam.width}x{cam.height}", path=path)
+        img = read_image(path, reduce_to=reduced_size(cam.width, cam.height, det.photo_width))
         return det.detect(img, size=(self.camera.width, self.camera.height))
 
     def keyframe(self, k: int) -> F32Maps:

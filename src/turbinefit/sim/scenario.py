@@ -36,6 +36,9 @@ from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
 from turbinefit.sim.turbines import neighbour_turbine, preset_turbine
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
+#: Default largest heat-map width [px] (:attr:`SimConfig.heatmap_size`).
+HEATMAP_WIDTH = 320
+
 #: Stream indices of :func:`simulate_flight`'s spawned generators.
 _STREAMS = ("turbine", "trajectory", "second_turbine", "drift", "turbine_noise", "heatmaps",
             "odometry")
@@ -55,8 +58,12 @@ class SimConfig:
     Attributes:
         n_keyframes: number of keyframes N (>= 1).
         seed: random seed; the same configuration and seed give a bit-identical flight.
-        width: heat-map / image width [px].
-        height: heat-map / image height [px].
+        width: camera (photo) width [px].
+        height: camera (photo) height [px].
+        heatmap_size: (width, height) [px] of the heat-maps, the camera's size scaled
+            (:meth:`~turbinefit.geometry.camera.PinholeCamera.scaled_to`); None = the
+            camera's size, scaled to :data:`HEATMAP_WIDTH` px wide if it is wider (320 x
+            240 for any 4:3 camera), so files stay small whatever the camera.
         hfov_deg: horizontal field of view [deg]; fx = fy = (width / 2) / tan(hfov / 2)
             (70 deg at 320 px: 228.5 px, an inspection drone's wide camera).
         distortion: plumb_bob (k1, k2, p1, p2, k3); zeros for none.
@@ -65,7 +72,7 @@ class SimConfig:
         geometry: shape details beyond the paper's model, used for the ground truth
             (default: the paper's model).
         heatmap_sigma: blob / ridge standard deviation [px] at 320 px width; scaled with
-            ``width / 320``.
+            the heat-maps' width ``/ 320``.
         heatmap_noise: heat-map imperfections.
         drift_pos_m: RMS position drift of the initial poses at the last keyframe [m].
         drift_rot_deg: RMS orientation drift of the initial poses at the last keyframe
@@ -94,6 +101,7 @@ class SimConfig:
     seed: int = 0
     width: int = 320
     height: int = 240
+    heatmap_size: tuple[int, int] | None = None
     hfov_deg: float = 70.0
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
     turbine: str = "nrel5mw"
@@ -129,6 +137,11 @@ class SimConfig:
                 and self.odometry_noise >= 0):
             raise ValueError(f"odometry_noise must be a non-negative number, "
                              f"got {self.odometry_noise!r}")
+        if self.heatmap_size is not None:
+            try:
+                self.heatmap_camera()
+            except ValueError as e:
+                raise ValueError(f"heatmap_size: {e}") from None
 
     def camera(self) -> PinholeCamera:
         """The simulated camera (principal point at the image centre)."""
@@ -136,9 +149,21 @@ class SimConfig:
         return PinholeCamera(self.width, self.height, f, f, (self.width - 1) / 2.0,
                              (self.height - 1) / 2.0, 0.0, self.distortion)
 
+    def heatmap_camera(self) -> PinholeCamera:
+        """The camera of the heat-maps' pixel grid: :meth:`camera` scaled to
+        :attr:`heatmap_size` (the camera itself at its own size)."""
+        cam = self.camera()
+        if self.heatmap_size is None:
+            if cam.width <= HEATMAP_WIDTH:
+                return cam
+            w, h = HEATMAP_WIDTH, max(1, round(cam.height * HEATMAP_WIDTH / cam.width))
+        else:
+            w, h = self.heatmap_size
+        return cam.scaled_to(w, h)
+
     def render_config(self) -> RenderConfig:
-        """Heat-map rendering settings (sigma scaled to the image width)."""
-        return RenderConfig(sigma_px=self.heatmap_sigma * self.width / 320.0,
+        """Heat-map rendering settings (sigma scaled to the heat-maps' width)."""
+        return RenderConfig(sigma_px=self.heatmap_sigma * self.heatmap_camera().width / 320.0,
                             noise=self.heatmap_noise)
 
 
@@ -190,7 +215,9 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
         and ``turbine`` the perturbed turbine (the initial estimates), with
         ``gt_world_T_cam`` / ``gt_turbine`` the truth, ``odometry`` None (``gps``) or the
         body-frame odometry (``vio``, then also ``world_T_cam``), timestamps
-        ``t0 + k dt`` and heat-maps rendered from the ground truth (N, 7, H, W).
+        ``t0 + k dt`` and heat-maps rendered from the ground truth (N, 7, h, w) at
+        :attr:`SimConfig.heatmap_size`; its camera is :meth:`SimConfig.heatmap_camera`
+        (photos are taken with :meth:`SimConfig.camera`).
     """
     cfg = cfg or SimConfig()
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(
@@ -207,7 +234,7 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
                                  rng["second_turbine"])
         distractors.append(other.to_vector())
 
-    camera = cfg.camera()
+    camera = cfg.heatmap_camera()
     maps = render_flight(camera, gt_poses, gt_turbine.to_vector(), cfg.geometry,
                          cfg.render_config(), rng["heatmaps"], distractors, progress=progress)
     init_poses = drift_poses(gt_poses, rng["drift"], cfg.drift_pos_m, cfg.drift_rot_deg)

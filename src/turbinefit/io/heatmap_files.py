@@ -1,0 +1,242 @@
+"""Heat-map files of a flight folder: ``heatmaps/<t>.npy`` opened by their headers.
+
+:func:`read_heatmaps` maps (or reads) one float32 (7, h, w) ``.npy`` per keyframe, every
+file of the same size (given, or that of the first file); :func:`scaled_camera` is the
+camera of maps smaller than the photos (the rules are in
+:mod:`turbinefit.io.flight_folder`'s docstring). Every problem is an
+:class:`~turbinefit.errors.InputError` naming the file.
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import math
+import os
+import stat
+from pathlib import Path
+
+import numpy as np
+from numpy.lib import format as npy_format
+from numpy.typing import ArrayLike, NDArray
+
+from turbinefit.errors import InputError
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
+from turbinefit.io.atomic import StrPath
+
+#: The photos' camera file of a flight folder (named in messages).
+CAMERA_FILE = "camera.yaml"
+
+_NPY_MAGIC = b"\x93NUMPY"
+_HEATMAP_DTYPE = np.dtype("<f4")
+
+
+def keyframe_stem(timestamp: float) -> str:
+    """The name of a keyframe's files without suffix, ``'%.6f' % timestamp``."""
+    return f"{timestamp:.6f}"
+
+
+def heatmap_filename(timestamp: float) -> str:
+    """The file name of a keyframe's heat-maps, ``'%.6f.npy' % timestamp``."""
+    return keyframe_stem(timestamp) + ".npy"
+
+
+# --------------------------------------------------------------------------- heat-maps
+
+_Header = tuple[tuple[int, ...], bool, np.dtype]
+
+
+def _read_npy_header(f: io.RawIOBase, fname: str,
+                     cache: dict[bytes, _Header]) -> tuple[_Header, int]:
+    """Parse a ``.npy`` header from an open file; returns (shape, fortran, dtype), offset."""
+    head = f.read(512) or b""
+    if len(head) < 10 or not head.startswith(_NPY_MAGIC):
+        raise InputError("not a .npy file (bad magic bytes)", path=Path(fname))
+    major = head[6]
+    if major == 1:
+        offset = 10 + int.from_bytes(head[8:10], "little")
+    elif major == 2:
+        offset = 12 + int.from_bytes(head[8:12], "little")
+    else:
+        raise InputError(f"unsupported .npy format version {major}.{head[7]}", path=Path(fname))
+    if len(head) < offset:
+        f.seek(0)
+        head = f.read(offset) or b""
+        if len(head) < offset:
+            raise InputError("truncated .npy header", path=Path(fname))
+    key = head[:offset]
+    parsed = cache.get(key)
+    if parsed is None:
+        stream = io.BytesIO(key[8:])
+        try:
+            if major == 1:
+                shape, fortran, dtype = npy_format.read_array_header_1_0(stream)
+            else:
+                shape, fortran, dtype = npy_format.read_array_header_2_0(stream)
+        except Exception as e:  # ValueError, SyntaxError, tokenize.TokenError, ...
+            raise InputError(f"invalid .npy header: {e}", path=Path(fname)) from e
+        parsed = (tuple(int(n) for n in shape), bool(fortran), np.dtype(dtype))
+        cache[key] = parsed
+    return parsed, offset
+
+
+def _check_heatmap(header: _Header, offset: int, size: int, shape: tuple[int, ...],
+                   fname: str, first: str | None) -> None:
+    got_shape, fortran, dtype = header
+    if dtype != _HEATMAP_DTYPE:
+        raise InputError(f"dtype {dtype.str}, expected float32 (<f4)", path=Path(fname))
+    if got_shape != shape:
+        why = ("7 channels x image_height x image_width" if first is None else
+               f"every heat-map of a flight has the size of the first, {first}")
+        raise InputError(f"shape {got_shape}, expected {shape} ({why})", path=Path(fname))
+    if fortran:
+        raise InputError("array is Fortran-ordered; save it C-ordered "
+                         "(np.save(path, np.ascontiguousarray(a)))", path=Path(fname))
+    need = offset + math.prod(shape) * dtype.itemsize
+    if size < need:
+        raise InputError(f"truncated: {size} bytes, expected {need}", path=Path(fname))
+
+
+def _raise_open_file_limit(extra: int) -> None:
+    """Make room for ``extra`` more open files: raise the soft RLIMIT_NOFILE (at most to
+    the hard limit) if the descriptors already open plus ``extra`` exceed it."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on Unix
+        return
+    try:
+        in_use = len(os.listdir("/proc/self/fd"))
+    except OSError:  # not Linux: assume a few hundred
+        in_use = 256
+    needed = in_use + extra
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft >= needed:
+        return
+    target = needed if hard == resource.RLIM_INFINITY else min(needed, hard)
+    try:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+    except (ValueError, OSError):  # pragma: no cover - e.g. macOS caps at OPEN_MAX
+        pass
+
+
+def _os_error(e: OSError, n: int, fname: str) -> InputError:
+    if e.errno in (errno.EMFILE, errno.ENFILE):
+        return InputError(f"too many open files: memory-mapping {n} heat-maps needs one file "
+                          "descriptor each; raise the limit (ulimit -n) or read with mmap=False",
+                          path=Path(fname))
+    return InputError(f"cannot read: {e.strerror or e}", path=Path(fname))
+
+
+def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = None,
+                  width: int | None = None, mmap: bool = True,
+                  keyframes_file: StrPath | None = None,
+                  keyframe_lines: ArrayLike | None = None) -> HeatmapStack:
+    """Open ``folder/<%.6f timestamp>.npy`` for every timestamp (see module docstring).
+
+    Args:
+        folder: the ``heatmaps`` directory.
+        timestamps: (N,) keyframe timestamps [s].
+        height, width: expected map size [px]; None = that of the first file (the others
+            must have it too).
+        mmap: map files read-only (default) or load all into one (N, 7, H, W) array.
+        keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
+
+    Raises:
+        InputError: naming the heat-map file that is missing or invalid.
+    """
+    import mmap as mmap_module
+
+    folder = Path(folder)
+    t = np.asarray(timestamps, dtype=np.float64)
+    lines = None if keyframe_lines is None else np.asarray(keyframe_lines).tolist()
+    kind = _kind(folder)
+    if kind is None:
+        raise InputError("heat-map directory not found", path=folder)
+    if kind != "dir":
+        raise InputError("not a directory (expected the heat-map folder)", path=folder)
+    given = height is not None and width is not None
+    shape = (NUM_CHANNELS, int(height or 0), int(width or 0))
+    names = [heatmap_filename(x) for x in t.tolist()]
+    if len(set(names)) != len(names):
+        raise InputError("two keyframe timestamps have the same %.6f text, so they would "
+                         "share a heat-map file", path=keyframes_file or folder)
+    cache: dict[bytes, _Header] = {}
+    stacked = None
+    maps: list[NDArray[np.float32]] = []
+    if mmap:
+        _raise_open_file_limit(len(names) + 64)
+    base = os.fspath(folder)
+    for k, name in enumerate(names):
+        fname = os.path.join(base, name)
+        try:
+            f = open(fname, "rb", buffering=0)  # closed by the with below
+        except FileNotFoundError:
+            where = f"keyframe {k}, timestamp {name[:-4]}"
+            if keyframes_file is not None:
+                line = f", line {lines[k]}" if lines is not None else ""
+                where += f" ({Path(keyframes_file).name}{line})"
+            raise InputError(f"heat-map file missing for {where}", path=Path(fname)) from None
+        except OSError as e:
+            raise _os_error(e, len(names), fname) from e
+        with f:
+            try:
+                header, offset = _read_npy_header(f, fname, cache)
+                if k == 0 and not given:
+                    shape = _first_shape(header[0], fname)
+                _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname,
+                               None if given else names[0])
+                if k == 0 and not mmap:
+                    stacked = np.empty((len(names), *shape), dtype=np.float32)
+                if stacked is None:
+                    mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
+                    maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
+                else:
+                    f.seek(offset)
+                    view = memoryview(stacked[k]).cast("B")
+                    done = 0
+                    while done < view.nbytes:
+                        n = f.readinto(view[done:])
+                        if not n:
+                            raise InputError("truncated", path=Path(fname))
+                        done += n
+            except OSError as e:
+                raise _os_error(e, len(names), fname) from e
+    return HeatmapStack(stacked if stacked is not None else maps)
+
+
+def _first_shape(shape: tuple[int, ...], fname: str) -> tuple[int, int, int]:
+    """The (7, h, w) shape of a flight's first heat-map file, checked."""
+    if len(shape) != 3 or shape[0] != NUM_CHANNELS or min(shape) < 1:
+        raise InputError(f"shape {shape}, expected ({NUM_CHANNELS}, height, width)",
+                         path=Path(fname))
+    return NUM_CHANNELS, int(shape[1]), int(shape[2])
+
+
+def scaled_camera(camera: PinholeCamera, width: int, height: int) -> PinholeCamera:
+    """The camera of heat-maps of ``width`` x ``height`` px made from photos of
+    ``camera`` (:meth:`~turbinefit.geometry.camera.PinholeCamera.scaled_to`: ``camera``
+    itself at its own size, else resized with pixel centres aligned).
+
+    Raises:
+        ValueError: if the size is larger than the camera's or not a scale of it (the
+            message names ``camera.yaml``).
+    """
+    try:
+        return camera.scaled_to(width, height)
+    except ValueError as e:
+        raise ValueError(f"heat-maps of {int(width)}x{int(height)} px do not fit the photos "
+                         f"of {CAMERA_FILE}: {e}") from None
+
+
+def _kind(path: Path) -> str | None:
+    """``"dir"``, ``"file"`` (anything else that exists) or None (missing), following
+    symbolic links; a path that cannot be inspected (a parent directory without search
+    permission, a symbolic-link loop) is an InputError, not a "missing" or a traceback."""
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as e:
+        raise InputError(f"cannot access: {e.strerror or e}", path=path) from e
+    return "dir" if stat.S_ISDIR(st.st_mode) else "file"
