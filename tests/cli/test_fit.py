@@ -31,6 +31,7 @@ from turbinefit.cli import main
 from turbinefit.io import read_turbine_yaml
 from turbinefit.io.fit_config import read_fit_config
 from turbinefit.io.images import read_image, write_png
+from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
 from turbinefit.solver.config import PRESETS, FitConfig
 
 PLOTS = {"scene.png", "reprojections.png", "errors.png", "cost.png"}
@@ -61,7 +62,8 @@ def test_fit_joint_with_plots(sim_flight_dir: Path, tmp_path: Path,
     # config.yaml is the run's configuration (defaults here, with pair_frame="auto"
     # resolved: GPS/IMU keyframes, no odometry.txt) and loads back
     cfg = read_fit_config(out_dir / "config.yaml")
-    assert cfg == FitConfig(pair_frame="measured")
+    # no options: the defaults for heat-map files, the pairwise frame resolved
+    assert cfg == FitConfig(pair_frame="measured", **FILE_FIT_DEFAULTS)
     assert yaml.safe_load((out_dir / "config.yaml").read_text())["turbinefit_version"] == \
         turbinefit.__version__
 
@@ -156,7 +158,8 @@ def test_fit_config_file_round_trip(sim_flight_dir: Path, tmp_path: Path,
                      "--pair-sigma-r", "0.2", "--max-iterations", "5")
     assert rc == 0, err
     cfg1 = read_fit_config(first / "config.yaml")
-    assert cfg1 == dataclasses.replace(FitConfig(), points="interp", lambda_pair=2.5, robust="huber",
+    assert cfg1 == dataclasses.replace(FitConfig(**FILE_FIT_DEFAULTS), points="interp",
+                                       lambda_pair=2.5, robust="huber",
                                        pair_sigma_r_deg=0.2, max_iterations=5,
                                        pair_frame="measured")  # auto, resolved
     # a previous run's config.yaml as --config; command-line options override it
@@ -250,9 +253,11 @@ def test_simulate_images_and_fit_from_them(photo_flight: Path, tmp_path: Path,
 def test_fit_defaults_follow_the_heatmap_source(photo_flight_dir: Path, tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     """With no --config or --preset, fit starts from the options measured best for its
-    kind of heat-maps (photos: PHOTO_FIT_DEFAULTS), says so, and records them; options
-    given on the command line still win, and a preset replaces the defaults."""
+    kind of heat-maps (FILE_FIT_DEFAULTS, PHOTO_FIT_DEFAULTS), says so, and records them;
+    options given on the command line still win, and a preset replaces the defaults."""
     from turbinefit.jobs.sources import PHOTO_FIT_DEFAULTS
+
+    assert dict(FILE_FIT_DEFAULTS) != dict(PHOTO_FIT_DEFAULTS)
 
     def run_fit(name: str, *extra: str) -> tuple[dict, dict, str]:
         out = tmp_path / name
@@ -263,12 +268,13 @@ def test_fit_defaults_follow_the_heatmap_source(photo_flight_dir: Path, tmp_path
                 json.loads((out / "summary.json").read_text()), text)
 
     cfg, summary, text = run_fit("files")
-    assert (cfg["points"], cfg["robust"]) == ("corr", "huber")  # FitConfig's own defaults
-    assert summary["defaults"] == "heat-map files" and "defaults for heat-map files" in text
+    assert {k: cfg[k] for k in FILE_FIT_DEFAULTS} == dict(FILE_FIT_DEFAULTS)
+    assert summary["defaults"].startswith("heat-map files")
+    assert "options: the defaults for heat-map files" in text
     cfg, summary, text = run_fit("photos", "--from-images")
     assert {k: cfg[k] for k in PHOTO_FIT_DEFAULTS} == dict(PHOTO_FIT_DEFAULTS)
     assert "detected from photos" in summary["defaults"] and "detected from photos" in text
-    cfg, summary, _ = run_fit("photos_corr", "--from-images", "--points", "corr")
-    assert (cfg["points"], cfg["robust"]) == ("corr", PHOTO_FIT_DEFAULTS["robust"])
+    cfg, summary, _ = run_fit("photos_interp", "--from-images", "--points", "interp")
+    assert (cfg["points"], cfg["robust"]) == ("interp", PHOTO_FIT_DEFAULTS["robust"])
     cfg, summary, _ = run_fit("photos_preset", "--from-images", "--preset", "paper-best")
-    assert (cfg["points"], cfg["robust"]) == ("corr", "huber") and "defaults" not in summary
+    assert (cfg["lines"], cfg["robust"]) == ("interp", "huber") and "defaults" not in summary

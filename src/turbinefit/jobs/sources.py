@@ -37,11 +37,21 @@ F32Maps = NDArray[np.float32]
 #: Heat-maps detected for a fit are at most this wide [px]; a larger camera is resized.
 FIT_DETECT_WIDTH = 320
 
-#: The fit options that measured best on heat-maps the CNN detects in photos (the
-#: interpolated point cost and a Cauchy loss: the net's peaks carry biases of about a pixel
-#: that correspondences would follow; ``benchmarks/bench_defaults.py``).
-PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({"points": "interp",
-                                                          "robust": "cauchy"})
+#: The fit options that measured best on heat-map files (the simulator's maps): line
+#: correspondences scored along the search normal and a Cauchy loss
+#: (``benchmarks/bench_defaults.py``; the paper's configuration is ``--preset paper-best``).
+FILE_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
+    "lines": "corr", "line_residual": "normal", "robust": "cauchy"})
+#: The fit options that measured best on heat-maps the CNN detects in photos: as for files,
+#: with correspondences trusted less (2 px) and a tighter Cauchy loss (scale 1), since the
+#: net's peaks carry errors and biases of about a pixel (``benchmarks/bench_defaults.py``).
+PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
+    "lines": "corr", "line_residual": "normal", "robust": "cauchy", "pixel_sigma": 2.0,
+    "robust_scale": 1.0})
+
+
+def _describe(options: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in options.items())
 
 
 class HeatmapSource(Protocol):
@@ -84,8 +94,8 @@ class FileHeatmaps:
     (:meth:`~turbinefit.io.flight_folder.FlightFolder.heatmap_camera`)."""
 
     description = "heatmaps/"
-    fit_defaults: Mapping[str, Any] = MappingProxyType({})
-    defaults_name = "heat-map files"
+    fit_defaults = FILE_FIT_DEFAULTS
+    defaults_name = f"heat-map files ({_describe(FILE_FIT_DEFAULTS)})"
 
     def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
         self.folder = folder
@@ -147,8 +157,7 @@ class PhotoHeatmaps:
         self.threads = threads
         self.description = f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
         self.fit_defaults = PHOTO_FIT_DEFAULTS
-        self.defaults_name = "heat-maps detected from photos (" + ", ".join(
-            f"{k}={v}" for k, v in PHOTO_FIT_DEFAULTS.items()) + ")"
+        self.defaults_name = f"heat-maps detected from photos ({_describe(PHOTO_FIT_DEFAULTS)})"
         self._detector: HeatmapDetector | None = None
 
     def __len__(self) -> int:
