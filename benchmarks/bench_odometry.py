@@ -10,7 +10,7 @@ fitted by the real command line ``turbinefit fit FLIGHT --out OUT --no-plots`` u
   without);
 * ``paper``: the paper's residual and configuration, ``--pair-frame estimated --preset
   paper-best``;
-* ``measured``: ``--pair-frame measured`` (the default before ``auto``);
+* ``measured``: ``--pair-frame measured``;
 * ``corr-normal``: ``--preset corr-normal`` (pair frame auto).
 
 Usage::
