@@ -15,7 +15,7 @@ A 20 MP inspection camera (5280 x 3956) is the case measured:
   (maximum resident set size of the command's process) and bytes written per photo; the
   CPU seconds per photo too (user + system), which say the rate on two free cores when
   other work shares the machine;
-* ``fit --from-images --points interp --robust cauchy`` of the whole flight, end to end
+* ``fit --from-images`` (the defaults for photos) of the whole flight, end to end
   (process start to exit), and its errors against the ground truth.
 
 Every command runs as its own process (the installed ``turbinefit``); its peak memory is
@@ -176,12 +176,10 @@ def bench_detect(flight: Path, work: Path, count: int | None) -> dict:
 def bench_fit(flight: Path, work: Path) -> dict:
     out = work / "fit"
     warm(flight / "images")
-    seconds, rss, _, cpu = run_measured([str(BIN), "fit", str(flight), "--from-images", "--points",
-                                    "interp", "--robust", "cauchy", "--out", str(out),
-                                    "--no-plots", "--overwrite"])
+    seconds, rss, _, cpu = run_measured([str(BIN), "fit", str(flight), "--from-images",
+                                         "--out", str(out), "--no-plots", "--overwrite"])
     summary = json.loads((out / "summary.json").read_text())
-    return {"command": "turbinefit fit FLIGHT --from-images --points interp --robust cauchy "
-                       "--out OUT --no-plots",
+    return {"command": "turbinefit fit FLIGHT --from-images --out OUT --no-plots",
             "keyframes": summary.get("num_keyframes"), "wall_seconds": seconds,
             "cpu_seconds": cpu, "peak_rss_mb": rss / 1e6, "timings": summary.get("timing_s"),
             "accuracy": summary.get("accuracy")}
