@@ -9,12 +9,12 @@ import pytest
 from PIL import Image
 
 from turbinefit.errors import InputError
+from turbinefit.geometry.camera import reduced_size
 from turbinefit.io.images import (
     check_image,
     image_size,
     list_images,
     read_image,
-    reduced_size,
     resize_image,
     write_png,
 )

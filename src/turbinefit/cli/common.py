@@ -27,10 +27,7 @@ if TYPE_CHECKING:
 # ---- argument types ----------------------------------------------------------------------
 
 def whole_number(text: str, minimum: int, why: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    v = _integer(text)
     if v < minimum:
         raise argparse.ArgumentTypeError(f"{why}, got {v}")
     return v
@@ -194,7 +191,7 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
     choices, help and default from the dataclass and its field docstrings), except those
     only a YAML file sets; ``batch=False`` (``track``) leaves out those the tracker does
     not use. Every option defaults to None: unset, the --config or --preset value holds;
-    values are checked by FitConfig itself (:func:`resolve_fit_config`)."""
+    values are checked by FitConfig itself when the job applies them."""
     from turbinefit.solver.config import FitConfig
 
     default = FitConfig()
@@ -268,19 +265,6 @@ def fit_base_and_options(args: argparse.Namespace) -> tuple[FitConfig | None, di
                              f"{', '.join(PRESETS)})", field="--preset")
         base = PRESETS[args.preset]
     return base, fit_option_names(args)
-
-
-def resolve_fit_config(args: argparse.Namespace) -> FitConfig:
-    """The FitConfig of --config or --preset (default: FitConfig()) with the command-line
-    fit options on top."""
-    from turbinefit.errors import InputError
-    from turbinefit.solver.config import FitConfig
-
-    base, options = fit_base_and_options(args)
-    try:
-        return dataclasses.replace(base or FitConfig(), **options)
-    except ValueError as exc:
-        raise InputError(str(exc), field="fit options") from None
 
 
 def pair_frame_report(base: FitConfig | None, options: dict[str, Any], used: FitConfig) -> str:

@@ -30,6 +30,15 @@ FloatArray = NDArray[np.float64]
 MIN_DEPTH = 0.1
 
 
+def reduced_size(width: int, height: int, max_width: int) -> tuple[int, int]:
+    """The size of a ``width`` x ``height`` image scaled to at most ``max_width`` px wide
+    (aspect ratio kept, height rounded, at least 1): the image's own size if it is not
+    wider."""
+    if width <= max_width:
+        return int(width), int(height)
+    return int(max_width), max(1, round(height * max_width / width))
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """Intrinsics of a pinhole camera (pixels) with ``plumb_bob`` distortion.
@@ -132,6 +141,11 @@ class PinholeCamera:
             raise ValueError(f"{w}x{h} is not the camera's {W}x{H} scaled (aspect ratio "
                              f"{w / h:.4g}, camera {W / H:.4g})")
         return self.resized(w, h)
+
+    def at_most(self, max_width: int) -> PinholeCamera:
+        """The camera of its images scaled to at most ``max_width`` px wide
+        (:func:`reduced_size`; itself if it is not wider)."""
+        return self.scaled_to(*reduced_size(self.width, self.height, max_width))
 
     def in_image(self, uv: FloatArray, margin: float = 0.0) -> NDArray[np.bool_]:
         """Whether pixels lie inside the image (pixel centres ``0 .. W-1``, ``0 .. H-1``)."""

@@ -13,7 +13,8 @@ still at least ``w`` x ``h``; a 20 MP JPEG decodes several times faster at 1/4, 
 sixteenth of the memory) and then resizes exactly to ``w`` x ``h`` (:func:`resize_image`).
 Other formats (PNG) have no such decode and are read at full size as they are, so their
 pixels do not change. :func:`image_size` gives the upright size from the header, to
-choose ``reduce_to`` with (:func:`reduced_size`).
+choose ``reduce_to`` with
+(:func:`turbinefit.geometry.camera.reduced_size`).
 
 Resizing (:func:`resize_image`) uses Pillow's resampling, which keeps pixel centres
 aligned (the convention of :meth:`turbinefit.geometry.camera.PinholeCamera.resized`) and
@@ -117,15 +118,6 @@ def image_size(path: StrPath) -> tuple[int, int]:
     with _image_errors(p), Image.open(p) as im:
         w, h = int(im.width), int(im.height)
         return (h, w) if _swaps_axes(im) else (w, h)
-
-
-def reduced_size(width: int, height: int, max_width: int) -> tuple[int, int]:
-    """The size of a ``width`` x ``height`` image scaled to at most ``max_width`` px wide
-    (aspect ratio kept, height rounded, at least 1): the image's own size if it is not
-    wider."""
-    if width <= max_width:
-        return int(width), int(height)
-    return int(max_width), max(1, round(height * max_width / width))
 
 
 def check_image(path: StrPath) -> tuple[int, int]:

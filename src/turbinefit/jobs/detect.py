@@ -21,12 +21,12 @@ import numpy as np
 
 from turbinefit.detect import DetectOptions, HeatmapDetector, overlay, unique_stems
 from turbinefit.errors import InputError
+from turbinefit.geometry.camera import reduced_size
 from turbinefit.io.images import (
     encode_png,
     image_size,
     list_images,
     read_image,
-    reduced_size,
     resize_image,
 )
 from turbinefit.jobs.outputs import DETECT_OUTPUTS

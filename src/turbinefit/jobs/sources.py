@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
-from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.camera import PinholeCamera, reduced_size
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
-from turbinefit.io.images import image_size, read_image, reduced_size
+from turbinefit.io.images import image_size, read_image
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
@@ -118,8 +118,7 @@ class FileHeatmaps:
 def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
     """The camera of heat-maps detected from photos taken with ``camera``: the same, or
     resized to ``width`` px wide if it is wider (detection at a working resolution)."""
-    w, h = reduced_size(camera.width, camera.height, width)
-    return camera if (w, h) == (camera.width, camera.height) else camera.resized(w, h)
+    return camera.at_most(width)
 
 
 class PhotoHeatmaps:

@@ -154,12 +154,8 @@ class SimConfig:
         :attr:`heatmap_size` (the camera itself at its own size)."""
         cam = self.camera()
         if self.heatmap_size is None:
-            if cam.width <= HEATMAP_WIDTH:
-                return cam
-            w, h = HEATMAP_WIDTH, max(1, round(cam.height * HEATMAP_WIDTH / cam.width))
-        else:
-            w, h = self.heatmap_size
-        return cam.scaled_to(w, h)
+            return cam.at_most(HEATMAP_WIDTH)
+        return cam.scaled_to(*self.heatmap_size)
 
     def render_config(self) -> RenderConfig:
         """Heat-map rendering settings (sigma scaled to the heat-maps' width)."""
