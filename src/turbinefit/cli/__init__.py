@@ -25,6 +25,7 @@ COMMANDS: dict[str, str] = {
     "track": "replay a flight keyframe by keyframe (in-flight tracking)",
     "experiment": "Monte Carlo studies of the paper (simulated flights)",
     "report": "rebuild an experiment's figures and report from its rows",
+    "import": "make a flight folder from DJI photos or a ROS bag",
     "detect": "heat-maps of photos with the CNN (onnxruntime)",
     "evaluate": "detection metrics of the CNN on labelled photos (COCO keypoints)",
     "train": "train the heat-map CNN on rendered photos (needs turbinefit[train])",
@@ -48,8 +49,12 @@ Run 'turbinefit COMMAND --help' for a command's options.
 """
 
 
+#: Commands whose module name differs from the command (``import`` is a Python keyword).
+_MODULE_NAMES = {"import": "import_"}
+
+
 def _module(name: str) -> ModuleType:
-    return importlib.import_module(f"turbinefit.cli.{name}")
+    return importlib.import_module(f"turbinefit.cli.{_MODULE_NAMES.get(name, name)}")
 
 
 def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentParser:
