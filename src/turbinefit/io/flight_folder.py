@@ -12,6 +12,8 @@ Layout (names exact)::
         groundtruth.txt             TUM, ground-truth world_T_cam           (optional)
         turbine_groundtruth.yaml    ground-truth turbine parameters         (optional)
         simulation.yaml             settings of ``turbinefit simulate``     (optional, not read)
+        georef.yaml                 WGS84 origin of an ENU world frame      (optional, see
+                                    :mod:`turbinefit.io.georef`; read by fit and track)
 
 * Poses: camera-to-world ``world_T_cam`` (OpenCV camera frame, world z up), metres; TUM
   files store quaternions xyzw (see :mod:`turbinefit.io.tum`).
@@ -61,7 +63,8 @@ check up front.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+import contextlib
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,10 +100,12 @@ GT_POSES_FILE = "groundtruth.txt"
 GT_TURBINE_FILE = "turbine_groundtruth.yaml"
 #: Written by ``turbinefit simulate`` (the simulation settings); never read.
 SIMULATION_FILE = "simulation.yaml"
+#: The WGS84 origin of a georeferenced flight (:mod:`turbinefit.io.georef`).
+GEOREF_FILE = "georef.yaml"
 #: Every entry a flight folder may contain (what ``write_flight(overwrite=True)`` may replace).
 FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                             HEATMAP_DIR, IMAGE_DIR, GT_POSES_FILE, GT_TURBINE_FILE,
-                            SIMULATION_FILE})
+                            SIMULATION_FILE, GEOREF_FILE})
 #: The entries :func:`write_flight` writes from the Flight itself (not as ``extra_texts``).
 _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
@@ -311,6 +316,15 @@ def check_flight_destination(folder: StrPath, overwrite: bool = False,
     a flight folder), before the flight to write exists. ``overwrite_hint`` ends the
     message for a non-empty folder."""
     check_output_dir(folder, overwrite, _only_flight_entries, overwrite_hint)
+
+
+@contextlib.contextmanager
+def flight_output_dir(folder: StrPath, overwrite: bool = False) -> Iterator[Path]:
+    """:func:`~turbinefit.io.atomic.atomic_output_dir` with the overwrite guard of
+    :func:`write_flight`, for writers that fill a flight folder file by file (the
+    importers)."""
+    with atomic_output_dir(folder, overwrite=overwrite, may_replace=_only_flight_entries) as tmp:
+        yield tmp
 
 
 def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,

@@ -11,6 +11,9 @@ Format (YAML mapping, exactly these seven keys, any order; comments allowed)::
     blade_rotation: 0.3   # rad, blade 1 angle about the nacelle axis, 0 = up
     blade_length: 40.0    # m, > 0
 
+A georeferenced fit (:mod:`turbinefit.io.georef`) adds ``latitude`` and ``longitude``
+(WGS84 degrees) of the base; they are accepted (and ignored) on reading.
+
 World frame: metres, right-handed, z up (see :mod:`turbinefit.turbine.model`). Angles are
 radians and are not wrapped on reading or writing.
 
@@ -29,6 +32,8 @@ from turbinefit.io.atomic import StrPath, write_text_atomic
 from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float
 from turbinefit.turbine.model import TurbineParams
 
+#: Keys accepted on reading besides the seven (the base's WGS84 position, not read).
+LOCATION_KEYS = ("latitude", "longitude")
 _UNITS = dict(zip(TurbineParams.NAMES, ("m", "m", "m", "rad", "m", "rad", "m"), strict=True))
 
 
@@ -49,7 +54,9 @@ def read_turbine_yaml(path: StrPath) -> TurbineParams:
     """
     data = load_yaml_mapping(path)
     for key in data:
-        if key not in TurbineParams.NAMES:
+        if key in LOCATION_KEYS:
+            parse_number(data[key], path, key)
+        elif key not in TurbineParams.NAMES:
             raise InputError(f"unknown key (expected: {', '.join(TurbineParams.NAMES)})",
                              path=path, field=key)
     values: dict[str, float] = {}

@@ -23,6 +23,7 @@ from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_fit_config
 from turbinefit.io.flight_folder import read_flight_folder
+from turbinefit.io.georef import read_flight_georef, write_georef_outputs
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.outputs import FIT_OUTPUTS, flight_inputs, plot_error, summary_json
@@ -174,6 +175,7 @@ def fit_folder(
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     folder = read_flight_folder(flight_dir)
+    georef = read_flight_georef(flight_dir)
     source = open_heatmaps(folder, from_images, model, detect_options)
     cfg = fit_config_for(source, config, options)
     flight = folder.flight(source.stack(progress=detect_progress), source.camera)
@@ -199,6 +201,7 @@ def fit_folder(
     with FIT_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
         write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT)
+        write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam, result.turbine)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()

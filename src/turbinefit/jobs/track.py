@@ -26,6 +26,7 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
 from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
+from turbinefit.io.georef import read_flight_georef, write_georef_outputs
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
@@ -219,6 +220,7 @@ def track_folder(
     TRACK_OUTPUTS.check(out, flight_inputs(flight_dir, None if config_path is None
                                            else Path(config_path)), overwrite)
     folder = read_flight_folder(flight_dir)
+    georef = read_flight_georef(flight_dir)
     source = open_heatmaps(folder, from_images, model, detect_options)
     fit_cfg = fit_config_for(source, None if config is None else config.fit, options)
     try:
@@ -273,6 +275,7 @@ def track_folder(
                   comment="turbinefit track: each keyframe's estimate when it arrived")
         write_tum(tmp / "keyframes.txt", folder.timestamps, final_poses)
         write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT)
+        write_georef_outputs(tmp, georef, folder.timestamps, final_poses, turbine)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))
         write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)
