@@ -290,3 +290,39 @@ def tiny_sweep(study: str = "unary", **kw: object):
     from turbinefit.experiments import study_config
 
     return dataclasses.replace(study_config(study), **{**TINY, **kw})  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ DJI photos
+
+#: The WGS84 origin the DJI tests place simulated flights at (the take-off point).
+DJI_ORIGIN = (51.4545, -2.5879, 30.0)
+
+
+def dji_test_poses(n: int = 5) -> SE3:
+    """``n`` cameras 20-80 m up around a turbine, looking at it from several sides and
+    pitches, with a few degrees of roll (ENU about :data:`DJI_ORIGIN`)."""
+    from turbinefit.geometry.se3 import world_T_cam_from_angles
+
+    k = np.arange(n, dtype=np.float64)
+    az = 0.9 * k - 2.0
+    pos = np.stack([60 * np.cos(az), 60 * np.sin(az), 20 + 15 * k], axis=-1)
+    return world_T_cam_from_angles(pos, az + np.pi + 0.1 * np.sin(k), -0.15 - 1.3 * k / max(n - 1, 1),
+                                   0.05 * np.cos(3 * k))
+
+
+def write_dji_photos(folder: Path, world_T_cam: SE3, timestamps: np.ndarray,
+                     images: list[np.ndarray] | None = None, size: tuple[int, int] = (64, 48),
+                     names: str = "DJI_{:04d}.JPG", **metadata: object) -> list[Path]:
+    """DJI-style JPEGs (real XMP packets and EXIF, :mod:`turbinefit.sim.dji_photos`) of
+    cameras ``world_T_cam`` (ENU about :data:`DJI_ORIGIN`) at ``timestamps``; pixels from
+    ``images`` or flat grey of ``size``; ``metadata``: options of ``dji_metadata``."""
+    from turbinefit.io.georef import Georef
+    from turbinefit.sim.dji_photos import dji_poses, write_dji_photo
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for k, pose in enumerate(dji_poses(Georef(*DJI_ORIGIN), world_T_cam, timestamps)):
+        pixels = (images[k] if images is not None
+                  else np.full((size[1], size[0], 3), 90 + 10 * k, np.uint8))
+        out.append(write_dji_photo(folder / names.format(k), pixels, pose, **metadata))
+    return out

@@ -154,7 +154,7 @@ def import_dji(
     camera, intrinsics = flight_camera(photos)
     if origin is None:
         georef = ground_origin(photos[0])
-        origin_source = f"{photos[0].path.name} at ground level (altitude - relative altitude)"
+        origin_source = f"the first photo, {photos[0].path.name}, at ground level"
     else:
         georef = _georef(*origin)
         origin_source = "given"

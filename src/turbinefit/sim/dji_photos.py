@@ -65,7 +65,7 @@ def dji_poses(georef: Georef, world_T_cam: SE3, timestamps: ArrayLike,
     take-off point) at ``timestamps`` [s] after ``start``."""
     w = gimbal_from_world_T_cam(georef, world_T_cam)
     t = np.asarray(timestamps, dtype=np.float64)
-    return [DjiPose(start + timedelta(microseconds=round(float(t[k] - t[0]) * 1e6)),
+    return [DjiPose(start + timedelta(microseconds=round(float(t[k]) * 1e6)),
                     float(w.latitude[k]), float(w.longitude[k]), float(w.altitude[k]),
                     float(w.altitude[k] - georef.altitude), float(w.yaw[k]),
                     float(w.pitch[k]), float(w.roll[k])) for k in range(len(t))]
