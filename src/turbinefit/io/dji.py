@@ -132,19 +132,9 @@ def list_photos(inputs: Iterable[Path]) -> list[Path]:
     Raises:
         InputError: for a path that does not exist, or a folder without JPEG files.
     """
-    out: list[Path] = []
-    for p in inputs:
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir()
-                           if q.is_file() and q.suffix.lower() in JPEG_SUFFIXES)
-            if not found:
-                raise InputError("no JPEG photos (.jpg, .jpeg) in folder", path=p)
-            out.extend(found)
-        elif p.exists():
-            out.append(p)
-        else:
-            raise InputError("no such file or folder", path=p)
-    return out
+    from turbinefit.io.images import list_images
+
+    return list_images(inputs, JPEG_SUFFIXES)
 
 
 def read_dji_photo(path: Path) -> DjiPhoto:

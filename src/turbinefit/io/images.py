@@ -28,7 +28,7 @@ from __future__ import annotations
 import contextlib
 import io
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -159,9 +159,10 @@ def resize_image(image: U8Image, width: int, height: int,
     return np.asarray(im.resize((int(width), int(height)), Image.Resampling.BILINEAR, box=box))
 
 
-def list_images(inputs: list[Path]) -> list[Path]:
+def list_images(inputs: Iterable[Path],
+                suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -> list[Path]:
     """Image files named by ``inputs``: files as given, folders listed (not recursively,
-    suffixes :data:`IMAGE_SUFFIXES`, sorted by name).
+    lower-cased suffixes in ``suffixes``, sorted by name).
 
     Raises:
         InputError: for a path that does not exist, or a folder with no image files.
@@ -170,9 +171,9 @@ def list_images(inputs: list[Path]) -> list[Path]:
     for p in inputs:
         if p.is_dir():
             found = sorted(q for q in p.iterdir()
-                           if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES)
+                           if q.is_file() and q.suffix.lower() in suffixes)
             if not found:
-                raise InputError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in folder",
+                raise InputError(f"no image files ({', '.join(suffixes)}) in folder",
                                  path=p)
             out.extend(found)
         elif p.exists():
