@@ -102,6 +102,11 @@ def write_flight_bag(flight: Path, bag: Path, spec: BagSpec | None = None,
     camera = read_camera_yaml(flight / "camera.yaml")
     ros1 = spec.kind == "ros1"
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:  # rosbags' noetic store has no tf2_msgs
+        from rosbags.typesys import get_types_from_msg
+
+        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                       "tf2_msgs/msg/TFMessage"))
     T = ts.types
     ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
     if ros1:
