@@ -45,9 +45,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         description="Make a flight folder from a ROS bag (ROS 1 .bag; ROS 2 folder, .db3 or "
         ".mcap; needs turbinefit[ros]): camera.yaml from camera_info, the keyframes' images, "
         "and their camera poses world_T_cam (the pose topic interpolated to each image's "
-        "header stamp, times body_T_cam) in keyframes.txt and odometry.txt. Keyframes: the "
-        "first image, then each after --every-m metres travelled or --every-deg degrees "
-        "turned. Details in docs/import.md.")
+        "header stamp, times body_T_cam) in keyframes.txt and odometry.txt, timestamps the "
+        "images' header stamps in seconds. Keyframes: the first image, then each after "
+        "--every-m metres travelled or --every-deg degrees turned. Camera frame: the ROS "
+        "optical frame (z forward, x right, y down), as OpenCV's. Details in docs/rosbag.md.")
     p.add_argument("bag", metavar="BAG", type=Path, help="the bag (file or ROS 2 folder)")
     p.add_argument("--out", metavar="FLIGHT_DIR", type=Path, required=True,
                    help="flight folder to create")
