@@ -137,3 +137,16 @@ def test_default_keyframes_and_the_bag_left_untouched(flight: Path, tmp_path: Pa
     t, _ = read_tum(tmp_path / "out" / "keyframes.txt")
     assert s.keyframes == len(t) < 6
     assert s.notes[-1].startswith("no turbine.yaml")
+
+
+def test_images_of_another_size_than_camera_info_leave_nothing(flight: Path,
+                                                                tmp_path: Path) -> None:
+    from turbinefit.io.camera_yaml import read_camera_yaml, write_camera_yaml
+
+    other = Path(shutil.copytree(flight, tmp_path / "other"))
+    write_camera_yaml(other / "camera.yaml", read_camera_yaml(flight / "camera.yaml").scaled(2))
+    bag = write_flight_bag(other, tmp_path / "b.bag")
+    with pytest.raises(InputError, match=r"'/cam/image_raw' at 1700000000\.000000000: image is "
+                       r"160x120 but '/cam/camera_info' says 320x240"):
+        import_rosbag(bag, tmp_path / "out", EVERY)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.bag", "other"]
