@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.geometry.se3 import SE3, quat_conjugate, quat_log, quat_multiply
-from turbinefit.io.atomic import StrPath, atomic_output_dir, read_text, write_bytes_atomic
+from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
 from turbinefit.io.camera_yaml import format_camera_yaml
 from turbinefit.io.flight_folder import (
     CAMERA_FILE,
@@ -39,8 +39,8 @@ from turbinefit.io.flight_folder import (
     KEYFRAMES_FILE,
     ODOMETRY_FILE,
     TURBINE_FILE,
-    _only_flight_entries,
     check_flight_destination,
+    flight_output_dir,
 )
 from turbinefit.io.heatmap_files import keyframe_stem
 from turbinefit.io.tum import format_tum
@@ -218,10 +218,9 @@ def import_rosbag(bag_path: StrPath, out_dir: StrPath, options: RosbagOptions, *
         if turbine_text is not None:
             texts[TURBINE_FILE] = turbine_text
 
-        with atomic_output_dir(out, overwrite=overwrite,
-                               may_replace=_only_flight_entries) as tmp:
+        with flight_output_dir(out, overwrite) as tmp:
             for name, text in texts.items():
-                write_bytes_atomic(tmp / name, text.encode("utf-8"), fsync=False)
+                write_text_atomic(tmp / name, text, fsync=False)
             (tmp / IMAGE_DIR).mkdir()
             wanted = {int(i): float(s) for i, s in zip(kf_index, seconds, strict=True)}
             for i, msg in enumerate(b.messages(options.image_topic)):
