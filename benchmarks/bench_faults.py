@@ -1,7 +1,8 @@
 """The fault corpus as figures: tracebacks, hangs, silent accepts, files left behind.
 
-Runs every case of the fault corpus (``tests/faults.py``: malformed files, files that are
-named pipes or devices, absurd sizes and magnitudes, bad options, of every command) on a
+Runs every case of the fault corpus (``tests/fault_cases.py``, run by
+``tests/faults.py``: malformed files, files that are named pipes or devices, absurd sizes
+and magnitudes, bad options, of every command) on a
 freshly simulated 6-keyframe flight and counts, over all cases:
 
 * ``tracebacks``: a Python traceback reached stderr (or an exception escaped ``main``);
@@ -32,7 +33,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from faults import CASES, make_base, run_case  # noqa: E402
+from fault_cases import CASES  # noqa: E402
+from faults import make_base, run_case  # noqa: E402
 
 
 def run_corpus() -> dict[str, object]:

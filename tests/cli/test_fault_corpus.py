@@ -7,7 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from faults import CASES, make_base, run_case
+from fault_cases import CASES
+from faults import make_base, run_case
 
 
 @pytest.fixture(scope="module")

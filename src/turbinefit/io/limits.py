@@ -119,8 +119,8 @@ def _stat(path: Path, missing: str) -> os.stat_result:
 
 def _check_size(size: int, limit: int | None, path: Path) -> None:
     if limit is not None and size > limit:
-        raise InputError(f"file is {human_bytes(size)}, larger than the {human_bytes(limit)} "
-                         "limit for this kind of file", path=path)
+        raise InputError(f"file is {size} bytes ({human_bytes(size)}), larger than the "
+                         f"{human_bytes(limit)} limit for this kind of file", path=path)
 
 
 def check_input_file(path: StrPath, limit: int | None = None,
