@@ -85,6 +85,7 @@ from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo, valid_
 from turbinefit.heatmaps.resize import resize_maps
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image
+from turbinefit.io.limits import MAX_MODEL_BYTES, check_input_file
 
 if TYPE_CHECKING:
     import onnxruntime as ort
@@ -205,8 +206,8 @@ class HeatmapDetector:
         import onnxruntime as ort
 
         self.path = Path(model) if model is not None else default_model_path()
-        if not self.path.is_file():
-            raise InputError("model file not found", path=self.path)
+        # a regular file of a sane size (not a FIFO onnxruntime would wait on)
+        check_input_file(self.path, MAX_MODEL_BYTES, missing="model file not found")
         n_threads = (os.cpu_count() or 1) if threads is None else int(threads)
         if n_threads < 1:
             raise ValueError(f"threads must be at least 1, got {threads}")

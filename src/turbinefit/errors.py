@@ -1,4 +1,5 @@
-"""The package's exceptions: one base class, caught in one place by the CLI."""
+"""The package's exceptions: one base class, caught in one place by the CLI; and
+:func:`plain_number`, how error messages print numbers."""
 
 from __future__ import annotations
 
@@ -30,3 +31,18 @@ class InputError(TurbinefitError):
         self.path = path
         self.line = line
         self.field = field
+
+
+def plain_number(value: object) -> str:
+    """A number as messages print it: ``0.0``, ``12``, ``1e+300``, ``nan``, never
+    ``np.float64(0.0)``. Whole-number types print as integers, other reals with ``repr``
+    precision (so a timestamp keeps its digits); anything else as ``repr``."""
+    import numbers
+
+    if isinstance(value, bool):
+        return repr(value)
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        return repr(float(value))
+    return repr(value)

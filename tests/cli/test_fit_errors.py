@@ -354,14 +354,14 @@ def test_fit_unreadable_config_file(sim_flight_dir: Path, tmp_path: Path,
                                     monkeypatch: pytest.MonkeyPatch) -> None:
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text("mode: joint\n")
-    real_read_text = Path.read_text
+    real_open = os.open
 
-    def read_text(self: Path, *args: object, **kwargs: object) -> str:
-        if self == cfg:
-            raise PermissionError(13, "Permission denied", str(self))
-        return real_read_text(self, *args, **kwargs)  # type: ignore[arg-type]
+    def os_open(path: object, *args: object, **kwargs: object) -> int:
+        if Path(str(path)) == cfg:
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, *args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(Path, "read_text", read_text)
+    monkeypatch.setattr(os, "open", os_open)
     rc, out, err = run(capsys, "fit", str(sim_flight_dir), "--out", str(tmp_path / "fit"),
                        "--config", str(cfg), "--no-plots", "--quiet")
     assert_one_line_error(rc, out, err, re.escape(str(cfg)), r"cannot read", r"Permission denied")

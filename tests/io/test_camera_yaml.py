@@ -84,8 +84,8 @@ def test_camera_opencv_error_line_numbers_kept(tmp_path: Path) -> None:
 
 
 def ros_yaml(K: str = "[30.5, 0, 15.75, 0, 31.25, 11.5, 0, 0, 1]", krows: int = 3,
-             model: str | None = "plumb_bob", dist: str | None = "[-0.1, 0.01, 0, 0]",
-             drows: int = 1, dcols: int = 4, width: str = "32", extra: str = "") -> str:
+             model: str | None = "plumb_bob", dist: str | None = "[-0.1, 0.01, 0, 0, 0]",
+             drows: int = 1, dcols: int = 5, width: str = "32", extra: str = "") -> str:
     text = f"image_width: {width}\nimage_height: 24\ncamera_name: c\n"
     text += f"camera_matrix:\n  rows: {krows}\n  cols: 3\n  data: {K}\n"
     if model is not None:
@@ -98,11 +98,12 @@ def ros_yaml(K: str = "[30.5, 0, 15.75, 0, 31.25, 11.5, 0, 0, 1]", krows: int = 
 @pytest.mark.parametrize(
     ("kwargs", "expected"),
     [
-        ({}, (-0.1, 0.01, 0.0, 0.0, 0.0)),  # 4 coefficients padded
-        ({"dist": "[1e-5, 0, 0, 0]"}, (1e-5, 0.0, 0.0, 0.0, 0.0)),  # YAML-1.1 "string" number
+        ({}, (-0.1, 0.01, 0.0, 0.0, 0.0)),
+        # OpenCV's 4 coefficients (no model) padded; a YAML-1.1 "string" number
+        ({"model": None, "dist": "[1e-5, 0, 0, 0]", "dcols": 4}, (1e-5, 0.0, 0.0, 0.0, 0.0)),
         ({"model": "none", "dist": "[]", "dcols": 0}, (0.0,) * 5),
         ({"model": "''", "dist": None}, (0.0,) * 5),
-        ({"model": None, "dist": None}, (0.0,) * 5),
+        ({"model": "plumb_bob", "dist": "[]", "dcols": 0}, (0.0,) * 5),
         ({"model": "plumb_bob", "dist": "[0, 0, 0, 0, 0]", "dcols": 5}, (0.0,) * 5),
         ({"model": "rational_polynomial", "dist": "[0.1, 0.2, 0.3, 0.4, 0.5, 0, 0, 0]",
           "dcols": 8}, (0.1, 0.2, 0.3, 0.4, 0.5)),
@@ -124,12 +125,33 @@ def test_camera_distortion_variants(tmp_path: Path, kwargs: dict, expected: tupl
         ({"K": "[30.5, 0, 15.75, 0, 31.25, 11.5, 0, 0]"}, "camera_matrix", "rows * cols"),
         ({"K": "[30.5, 0, 15.75, 0, 31.25, 11.5]", "krows": 2}, "camera_matrix", "3x3"),
         ({"K": "[-30.5, 0, 15.75, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix", "fx"),
+        ({"K": "[0.0, 0, 15.75, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix", "got 0.0"),
         ({"K": "[30.5, 0, 15.75, 0, 0, 11.5, 0, 0, 1]"}, "camera_matrix", "fy"),
         ({"K": "[30.5, 0, 15.75, 0, 31.25, 11.5, 0, 0, 2]"}, "camera_matrix", "not a camera"),
         ({"K": "[30.5, 0, .nan, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix.data[2]", "finite"),
         ({"K": "[30.5, 0, abc, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix.data[2]",
          "not a number"),
-        ({"dist": "[.inf, 0, 0, 0]"}, "distortion_coefficients.data[0]", "finite"),
+        ({"dist": "[.inf, 0, 0, 0, 0]"}, "distortion_coefficients.data[0]", "finite"),
+        # coefficient counts per model, a file cut before its distortion block
+        ({"dist": "[0.1, 0.2, 0.3]", "dcols": 3}, "distortion_coefficients",
+         "3 distortion coefficients; distortion_model plumb_bob has 0 or 5"),
+        ({"model": None, "dist": "[0.1, 0.2, 0.3]", "dcols": 3}, "distortion_coefficients",
+         "OpenCV file without distortion_model has 0 or 4 or 5 or 8 or 12 or 14"),
+        ({"model": "rational_polynomial"}, "distortion_coefficients", "has 0 or 8"),
+        ({"model": None, "dist": None}, "distortion_coefficients", "missing (is the file cut"),
+        ({"dist": None}, "distortion_coefficients", "missing"),
+        ({"dist": "[1e6, 0, 0, 0, 0]"}, "distortion_coefficients", "coefficient 0 is 1000000.0"),
+        # implausible intrinsics
+        ({"K": "[30.5, 1e12, 15.75, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix",
+         "skew 1000000000000.0 px is implausible"),
+        ({"K": "[1e9, 0, 15.75, 0, 1e9, 11.5, 0, 0, 1]"}, "camera_matrix", "not a focal length"),
+        ({"K": "[0.1, 0, 15.75, 0, 0.1, 11.5, 0, 0, 1]"}, "camera_matrix", "not a focal length"),
+        ({"K": "[30.5, 0, 15.75, 0, 3000, 11.5, 0, 0, 1]"}, "camera_matrix", "fy / fx"),
+        ({"K": "[30.5, 0, 1e5, 0, 31.25, 11.5, 0, 0, 1]"}, "camera_matrix",
+         "principal point cx = 100000.0 px is far outside"),
+        ({"K": "[30.5, 0, 15.75, 0, 31.25, -40, 0, 0, 1]"}, "camera_matrix", "principal point cy"),
+        ({"width": "7"}, "image_width, image_height", "7x24 px; each side must be at least 24"),
+        ({"width": "100000000"}, "image_width, image_height", "more than the 200 MP limit"),
         ({"model": "equidistant"}, "distortion_model", "unsupported"),
         ({"model": "none"}, "distortion_coefficients", "not all zero"),
         ({"model": "rational_polynomial", "dist": "[0.1, 0, 0, 0, 0, 0.2, 0, 0]", "dcols": 8},

@@ -25,7 +25,10 @@ def test_png_round_trip_and_modes(tmp_path: Path) -> None:
     img = rng.integers(0, 256, size=(7, 9, 3), dtype=np.uint8)
     write_png(tmp_path / "a.png", img)
     np.testing.assert_array_equal(read_image(tmp_path / "a.png"), img)
-    assert check_image(tmp_path / "a.png") == (9, 7)
+    with pytest.raises(InputError, match=r"a\.png: image is 9x7 px; each side must be at least 24"):
+        check_image(tmp_path / "a.png")  # a photo to detect on: too small
+    write_png(tmp_path / "b.png", np.zeros((25, 30, 3), np.uint8))
+    assert check_image(tmp_path / "b.png") == (30, 25)
     Image.fromarray(img[..., 0]).save(tmp_path / "grey.png")
     Image.fromarray(np.dstack([img, img[..., :1]])).save(tmp_path / "rgba.png")
     for name in ("grey.png", "rgba.png"):

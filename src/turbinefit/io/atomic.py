@@ -22,7 +22,8 @@ Directory writes are atomic with respect to other processes and to exceptions; f
 the temporary directory are not individually ``fsync``-ed (writing thousands of heat-maps
 must stay fast), so after a power loss the renamed directory's contents are up to the OS.
 
-Also :func:`read_text`, the one place where a failing *read* of a text file becomes an
+Also :func:`read_text`, the one place where a text file is read (only a regular file of
+at most a size limit, :mod:`turbinefit.io.limits`) and a failing read becomes an
 :class:`InputError` naming the file, and :func:`check_output_dir`, the destination check of
 :func:`atomic_output_dir` on its own, so that a job can refuse a bad output path before it
 spends minutes computing what it would write there.
@@ -42,6 +43,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from turbinefit.errors import InputError
+from turbinefit.io.limits import MAX_TABLE_BYTES, read_input_bytes
 
 StrPath = str | os.PathLike[str]
 
@@ -61,19 +63,16 @@ def _make_parent(path: Path) -> None:
         raise InputError(f"cannot create directory: {e.strerror or e}", path=path.parent) from e
 
 
-def read_text(path: StrPath) -> str:
-    """The contents of a UTF-8 text file (a BOM is ignored); errors become InputErrors."""
+def read_text(path: StrPath, limit: int = MAX_TABLE_BYTES) -> str:
+    """The contents of a UTF-8 text file (a BOM is ignored) of at most ``limit`` bytes;
+    only regular files are read (:func:`turbinefit.io.limits.read_input_bytes`: a FIFO or
+    a device is refused without being opened). Errors become InputErrors."""
     p = Path(path)
+    data = read_input_bytes(p, limit)
     try:
-        return p.read_text(encoding="utf-8-sig")
-    except FileNotFoundError as e:
-        raise InputError("file not found", path=p) from e
-    except IsADirectoryError as e:
-        raise InputError("is a directory, expected a file", path=p) from e
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise InputError(f"not a UTF-8 text file (byte {e.start})", path=p) from e
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", path=p) from e
 
 
 def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:

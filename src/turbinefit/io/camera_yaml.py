@@ -22,17 +22,24 @@ semantics. Aliases accepted on reading: ``cameraMatrix`` for ``camera_matrix``,
 ``distCoeffs`` / ``dist_coeffs`` for ``distortion_coefficients``, and
 ``cameraResolution: [w, h]`` for ``image_width`` / ``image_height``. Other keys are ignored.
 
-Distortion: ``plumb_bob`` (OpenCV's ``k1 k2 p1 p2 k3``; fewer coefficients are padded with
-zeros; missing, empty or all-zero coefficients mean no distortion). A missing or null
-``distortion_model`` (OpenCV files have none) means plumb_bob; ``""`` or ``none`` means no
-distortion and requires zero coefficients. ``rational_polynomial`` (and OpenCV's 8/12/14
-coefficient vectors) are accepted only when the coefficients beyond ``k3`` are zero (then
-the model *is* plumb_bob); any other model (e.g. ``equidistant``) is an
-:class:`~turbinefit.errors.InputError`.
+Distortion: ``plumb_bob`` (OpenCV's ``k1 k2 p1 p2 k3``: exactly 5 coefficients, or an
+empty list for none). A missing or null ``distortion_model`` (OpenCV files have none)
+means plumb_bob with OpenCV's vector lengths (4, 5, 8, 12 or 14; fewer than 5 are padded
+with zeros); ``""`` or ``none`` means no distortion and requires zero coefficients (or
+none at all). ``rational_polynomial`` (8 coefficients, and OpenCV's 8/12/14 vectors) is
+accepted only when the coefficients beyond ``k3`` are zero (then the model *is*
+plumb_bob); any other model (e.g. ``equidistant``) is an
+:class:`~turbinefit.errors.InputError`. ``distortion_coefficients`` is required unless the
+model is ``none``: a file cut off before its distortion block is refused, not read as a
+camera without distortion.
 
 Validation (each failure an InputError naming the file and field): ``rows * cols ==
-len(data)``, numbers finite, image size positive integers, ``camera_matrix`` 3x3 with
-bottom row ``0 0 1`` and ``K[1, 0] == 0``, focal lengths positive. Numbers written as
+len(data)``, numbers finite, image size integers of at least 32 px a side and at most
+200 MP (:func:`turbinefit.io.limits.check_image_size`), ``camera_matrix`` 3x3 with bottom
+row ``0 0 1`` and ``K[1, 0] == 0``, focal lengths positive, and intrinsics a camera can
+have (:func:`_check_plausible`): fx within 0.01-1000 times the image width, fy / fx within
+0.1-10, |skew| at most 0.1 fx, the principal point within one image size of the image,
+distortion coefficients within +-1000. Numbers written as
 strings that PyYAML's YAML 1.1 does not recognise (``1e-5``) are accepted; ``nan``/``inf``
 are not. Duplicate keys are errors.
 
@@ -47,15 +54,32 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.io.atomic import StrPath, write_text_atomic
+from turbinefit.io.limits import check_image_size
 from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float, yaml_str
 
 _K_KEYS = ("camera_matrix", "cameraMatrix")
 _D_KEYS = ("distortion_coefficients", "distCoeffs", "dist_coeffs")
 _NO_DISTORTION_MODELS = ("", "none")
 _SUPPORTED_MODELS = ("plumb_bob", "rational_polynomial")
+#: Distortion coefficients each model has (0 = an empty list, no distortion); "" = an
+#: OpenCV FileStorage file without a model (OpenCV's vector lengths).
+_COEFFICIENT_COUNTS = {"plumb_bob": (0, 5), "rational_polynomial": (0, 8),
+                       "": (0, 4, 5, 8, 12, 14)}
+
+#: Plausible intrinsics: focal lengths within these multiples of the image width (a
+#: horizontal field of view between 0.06 and 176 degrees) ...
+FOCAL_RANGE = (0.01, 1000.0)
+#: ... fy / fx (pixel aspect ratio) within these ...
+ASPECT_RANGE = (0.1, 10.0)
+#: ... |skew| at most this fraction of fx (axes within about 6 degrees of perpendicular) ...
+MAX_SKEW = 0.1
+#: ... the principal point within one image size of the image (cx in [-W, 2W]) ...
+PRINCIPAL_POINT_MARGIN = 1.0
+#: ... and every distortion coefficient within +-1000.
+MAX_DISTORTION = 1000.0
 
 
 def _first_key(data: dict[str, Any], keys: tuple[str, ...]) -> str | None:
@@ -99,14 +123,31 @@ def _parse_distortion(data: dict[str, Any], path: StrPath) -> NDArray[np.float64
     dkey = _first_key(data, _D_KEYS)
     raw = data.get(dkey) if dkey is not None else None
     field = dkey or "distortion_coefficients"
-    coeffs = np.zeros(0) if raw is None else _parse_matrix(raw, path, field).ravel()
     model_raw = data.get("distortion_model")
     if model_raw is not None and not isinstance(model_raw, str):
         raise InputError(f"must be a string, got {model_raw!r}", path=path,
                          field="distortion_model")
+    no_model = model_raw is None
+    model = "plumb_bob" if model_raw is None else model_raw.strip().lower()
+    if dkey is None and model not in _NO_DISTORTION_MODELS:
+        raise InputError("missing (is the file cut short?): a camera without distortion has "
+                         "five zero coefficients, or distortion_model: none", path=path,
+                         field=field)
+    coeffs = np.zeros(0) if raw is None else _parse_matrix(raw, path, field).ravel()
+    counts = _COEFFICIENT_COUNTS.get("" if no_model else model)
+    if counts is not None and coeffs.size not in counts:
+        which = ("an OpenCV file without distortion_model" if no_model else
+                 f"distortion_model {model_raw}")
+        raise InputError(f"{coeffs.size} distortion coefficients; {which} has "
+                         f"{' or '.join(map(str, counts))} (or none: an empty list)", path=path,
+                         field=field)
+    big = np.flatnonzero(np.abs(coeffs) > MAX_DISTORTION)
+    if big.size:
+        i = int(big[0])
+        raise InputError(f"coefficient {i} is {plain_number(coeffs[i])}, beyond the plausible "
+                         f"+-{MAX_DISTORTION:g}", path=path, field=field)
     if model_raw is None:  # OpenCV files have no model: its coefficients are plumb_bob's
         model_raw = "plumb_bob"
-    model = model_raw.strip().lower()
     if model in _NO_DISTORTION_MODELS:
         if np.any(coeffs != 0.0):
             raise InputError(f"distortion_model is {model_raw!r} but the coefficients are not "
@@ -121,6 +162,31 @@ def _parse_distortion(data: dict[str, Any], path: StrPath) -> NDArray[np.float64
     out = np.zeros(5)
     out[: min(5, coeffs.size)] = coeffs[:5]
     return out
+
+
+def _check_plausible(K: NDArray[np.float64], width: int, height: int, path: StrPath,
+                     field: str) -> None:
+    """Refuse intrinsics no camera has (the ranges above), naming the value."""
+    fx, fy, s, cx, cy = K[0, 0], K[1, 1], K[0, 1], K[0, 2], K[1, 2]
+    lo, hi = FOCAL_RANGE
+    if not lo * width <= fx <= hi * width:
+        raise InputError(f"fx = {plain_number(fx)} px is not a focal length of a {width} px wide "
+                         f"image (plausible: {lo:g} to {hi:g} times the width)", path=path,
+                         field=field)
+    lo, hi = ASPECT_RANGE
+    if not lo <= fy / fx <= hi:
+        raise InputError(f"fy / fx = {plain_number(fy / fx)} (fx {plain_number(fx)}, fy "
+                         f"{plain_number(fy)}); plausible: {lo:g} to {hi:g}", path=path,
+                         field=field)
+    if not abs(s) <= MAX_SKEW * fx:
+        raise InputError(f"skew {plain_number(s)} px is implausible (at most {MAX_SKEW:g} fx "
+                         f"= {plain_number(MAX_SKEW * fx)} px)", path=path, field=field)
+    m = PRINCIPAL_POINT_MARGIN
+    for name, c, size in (("cx", cx, width), ("cy", cy, height)):
+        if not -m * size <= c <= (1 + m) * size:
+            raise InputError(f"principal point {name} = {plain_number(c)} px is far outside "
+                             f"the {width}x{height} image (plausible: {plain_number(-m * size)} "
+                             f"to {plain_number((1 + m) * size)})", path=path, field=field)
 
 
 def camera_from_mapping(data: dict[str, Any], path: StrPath) -> PinholeCamera:
@@ -140,6 +206,8 @@ def camera_from_mapping(data: dict[str, Any], path: StrPath) -> PinholeCamera:
     for key, v in (("image_width", width), ("image_height", height)):
         if v <= 0:
             raise InputError(f"must be positive, got {v}", path=path, field=key)
+    check_image_size(width, height, path, field="image_width, image_height",
+                     what="the image size")
 
     kkey = _first_key(data, _K_KEYS)
     if kkey is None:
@@ -152,8 +220,9 @@ def camera_from_mapping(data: dict[str, Any], path: StrPath) -> PinholeCamera:
                          f"{K.ravel().tolist()}", path=path, field=kkey)
     for name, v in (("fx", K[0, 0]), ("fy", K[1, 1])):
         if not v > 0.0:
-            raise InputError(f"focal length {name} must be positive, got {v!r}", path=path,
-                             field=kkey)
+            raise InputError(f"focal length {name} must be positive, got {plain_number(v)}",
+                             path=path, field=kkey)
+    _check_plausible(K, width, height, path, kkey)
     dist = _parse_distortion(data, path)
     try:
         return PinholeCamera.from_matrix(width, height, K, dist)

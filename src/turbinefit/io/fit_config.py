@@ -19,6 +19,7 @@ import yaml
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, read_text
+from turbinefit.io.limits import MAX_SETTINGS_BYTES
 from turbinefit.io.yaml_files import FLOAT_TEXT, plain, safe_load_strict
 from turbinefit.solver.config import FitConfig
 from turbinefit.turbine.model import TurbineGeometry
@@ -36,7 +37,7 @@ def read_fit_config(path: StrPath) -> FitConfig:
     reads as strings, are accepted) or out of range.
     """
     p = Path(path)
-    text = read_text(p)
+    text = read_text(p, MAX_SETTINGS_BYTES)
     try:
         data = safe_load_strict(text)
     except yaml.YAMLError as exc:

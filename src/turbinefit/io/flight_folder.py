@@ -23,7 +23,8 @@ Layout (names exact)::
 * Heat-maps: ``heatmaps/<timestamp formatted %.6f>.npy`` (e.g. ``12.500000.npy``), a
   C-ordered little-endian float32 ``.npy`` array (7, h, w), channels in the order of
   :data:`turbinefit.heatmaps.CHANNEL_NAMES`. Other files in ``heatmaps/`` are ignored.
-  Values are not checked when reading (that would read the data).
+  Values must be finite and in [0, 1] (to 1e-3): each file's minimum and maximum per
+  channel are checked when it is opened, one pass over its data.
 * Heat-map size: every file of a flight has the same (h, w), read from the first file's
   header; it may be smaller than the photos of ``camera.yaml`` (W x H), and then fixes
   the scale: the flight's camera is ``camera.yaml``'s resized to w x h
@@ -71,7 +72,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
@@ -130,8 +131,9 @@ def _read_matching_tum(path: Path, keyframes: TumTrajectory, keyframes_path: Pat
     if bad.size:
         k = int(bad[0])
         raise InputError(
-            f"timestamp {traj.timestamps[k]!r} differs from keyframe {k} of "
-            f"{keyframes_path.name} ({keyframes.timestamps[k]!r}, line {keyframes.lines[k]}) "
+            f"timestamp {plain_number(traj.timestamps[k])} differs from keyframe {k} of "
+            f"{keyframes_path.name} ({plain_number(keyframes.timestamps[k])}, line "
+            f"{keyframes.lines[k]}) "
             f"by more than {TIMESTAMP_TOLERANCE:g} s", path=path, line=int(traj.lines[k]))
     return traj.poses
 

@@ -1,7 +1,10 @@
 """Heat-map files of a flight folder: ``heatmaps/<t>.npy`` opened by their headers.
 
 :func:`read_heatmaps` maps (or reads) one float32 (7, h, w) ``.npy`` per keyframe, every
-file of the same size (given, or that of the first file); :func:`scaled_camera` is the
+file of the same size (given, or that of the first file, at least
+:data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side), only regular files
+(:func:`~turbinefit.io.limits.open_input`), each checked finite and in [0, 1]
+(:func:`check_heatmap_values`: one minimum and maximum per channel); :func:`scaled_camera` is the
 camera of maps smaller than the photos (the rules are in
 :mod:`turbinefit.io.flight_folder`'s docstring). Every problem is an
 :class:`~turbinefit.errors.InputError` naming the file.
@@ -20,13 +23,17 @@ import numpy as np
 from numpy.lib import format as npy_format
 from numpy.typing import ArrayLike, NDArray
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
+from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS, HeatmapStack
 from turbinefit.io.atomic import StrPath
+from turbinefit.io.limits import MAX_IMAGE_PIXELS, MIN_IMAGE_SIDE, open_input
 
 #: The photos' camera file of a flight folder (named in messages).
 CAMERA_FILE = "camera.yaml"
+
+#: Heat-map values may lie this far outside [0, 1] (rounding of a resize or of float16).
+VALUE_TOLERANCE = 1e-3
 
 _NPY_MAGIC = b"\x93NUMPY"
 _HEATMAP_DTYPE = np.dtype("<f4")
@@ -169,16 +176,13 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
     base = os.fspath(folder)
     for k, name in enumerate(names):
         fname = os.path.join(base, name)
-        try:
-            f = open(fname, "rb", buffering=0)  # closed by the with below
-        except FileNotFoundError:
-            where = f"keyframe {k}, timestamp {name[:-4]}"
-            if keyframes_file is not None:
-                line = f", line {lines[k]}" if lines is not None else ""
-                where += f" ({Path(keyframes_file).name}{line})"
-            raise InputError(f"heat-map file missing for {where}", path=Path(fname)) from None
-        except OSError as e:
-            raise _os_error(e, len(names), fname) from e
+        try:  # a regular file only (a FIFO would block), closed by the with below
+            f = open_input(fname, missing=_missing(k, name, keyframes_file, lines))
+        except InputError as e:
+            cause = e.__cause__
+            if isinstance(cause, OSError) and cause.errno in (errno.EMFILE, errno.ENFILE):
+                raise _os_error(cause, len(names), fname) from cause
+            raise
         with f:
             try:
                 header, offset = _read_npy_header(f, fname, cache)
@@ -191,6 +195,7 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                 if stacked is None:
                     mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
                     maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
+                    check_heatmap_values(maps[-1], fname)
                 else:
                     f.seek(offset)
                     view = memoryview(stacked[k]).cast("B")
@@ -200,17 +205,57 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                         if not n:
                             raise InputError("truncated", path=Path(fname))
                         done += n
+                    check_heatmap_values(stacked[k], fname)
             except OSError as e:
                 raise _os_error(e, len(names), fname) from e
     return HeatmapStack(stacked if stacked is not None else maps)
 
 
+def _missing(k: int, name: str, keyframes_file: StrPath | None,
+             lines: list[int] | None) -> str:
+    where = f"keyframe {k}, timestamp {name[:-4]}"
+    if keyframes_file is not None:
+        line = f", line {lines[k]}" if lines is not None else ""
+        where += f" ({Path(keyframes_file).name}{line})"
+    return f"heat-map file missing for {where}"
+
+
 def _first_shape(shape: tuple[int, ...], fname: str) -> tuple[int, int, int]:
-    """The (7, h, w) shape of a flight's first heat-map file, checked."""
+    """The (7, h, w) shape of a flight's first heat-map file, checked (at least
+    :data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side, at most
+    :data:`~turbinefit.io.limits.MAX_IMAGE_PIXELS` pixels)."""
     if len(shape) != 3 or shape[0] != NUM_CHANNELS or min(shape) < 1:
         raise InputError(f"shape {shape}, expected ({NUM_CHANNELS}, height, width)",
                          path=Path(fname))
-    return NUM_CHANNELS, int(shape[1]), int(shape[2])
+    h, w = int(shape[1]), int(shape[2])
+    if min(h, w) < MIN_IMAGE_SIDE:
+        raise InputError(f"heat-maps of {w}x{h} px; each side must be at least "
+                         f"{MIN_IMAGE_SIDE} px", path=Path(fname))
+    if h * w > MAX_IMAGE_PIXELS:
+        raise InputError(f"heat-maps of {w}x{h} px, more than the {MAX_IMAGE_PIXELS / 1e6:g} MP "
+                         "limit", path=Path(fname))
+    return NUM_CHANNELS, h, w
+
+
+def check_heatmap_values(maps: NDArray[np.floating], fname: StrPath) -> None:
+    """Refuse one keyframe's heat-maps (7, h, w), of any float dtype, unless every value is
+    finite and within [0, 1] up to :data:`VALUE_TOLERANCE`; the message names the file,
+    the channel and the value. One pass over the data (a minimum and a maximum per
+    channel)."""
+    flat = maps.reshape(maps.shape[0], -1)
+    lo, hi = flat.min(axis=1), flat.max(axis=1)
+    ok = (lo >= -VALUE_TOLERANCE) & (hi <= 1.0 + VALUE_TOLERANCE)
+    if bool(ok.all()):
+        return
+    c = int(np.flatnonzero(~ok)[0])
+    name = CHANNEL_NAMES[c] if maps.shape[0] == NUM_CHANNELS else f"channel {c}"
+    if np.isnan(lo[c]) or np.isnan(hi[c]):
+        raise InputError(f"channel {c} ({name}) holds NaN; heat-map values must be finite, "
+                         "in [0, 1]", path=Path(fname))
+    bad = lo[c] if not lo[c] >= -VALUE_TOLERANCE else hi[c]
+    raise InputError(f"channel {c} ({name}) holds {plain_number(bad)}, outside [0, 1] "
+                     f"(values from {plain_number(lo[c])} to {plain_number(hi[c])}; tolerance "
+                     f"{VALUE_TOLERANCE:g})", path=Path(fname))
 
 
 def scaled_camera(camera: PinholeCamera, width: int, height: int) -> PinholeCamera:

@@ -37,11 +37,14 @@ from PIL import Image, ImageOps, UnidentifiedImageError
 
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, write_bytes_atomic
+from turbinefit.io.limits import MAX_IMAGE_PIXELS, check_image_size, open_input
 
 #: File name suffixes taken as images when a folder is listed (lower case).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
-# A 30000 x 30000 photo is fine; Pillow's default bomb guard (89 M pixels) warns earlier.
+# Pillow's own bomb guard (89 M pixels by default) is only a backstop above our limit,
+# MAX_IMAGE_PIXELS (checked with our message from the header): it warns at 1 G pixels,
+# which _image_errors turns into an error, and refuses beyond 2 G pixels.
 Image.MAX_IMAGE_PIXELS = 1_000_000_000
 
 U8Image = NDArray[np.uint8]
@@ -62,8 +65,25 @@ def _image_errors(p: Path) -> Iterator[None]:
         raise InputError("not an image file (Pillow cannot identify it)", path=p) from e
     except OSError as e:
         raise InputError(f"cannot read image: {e.strerror or e}", path=p) from e
-    except (ValueError, SyntaxError, Image.DecompressionBombWarning) as e:
+    except (Image.DecompressionBombWarning, Image.DecompressionBombError) as e:
+        raise InputError(f"image larger than the {MAX_IMAGE_PIXELS / 1e6:g} MP limit ({e})",
+                         path=p) from e
+    except (ValueError, SyntaxError) as e:
         raise InputError(f"cannot decode image: {e}", path=p) from e
+
+
+@contextlib.contextmanager
+def _open_image(p: Path, min_side: bool = False) -> Iterator[Image.Image]:
+    """The image file ``p`` opened lazily (header only), errors as :func:`_image_errors`:
+    only a regular file (:func:`~turbinefit.io.limits.open_input`), of at most
+    :data:`~turbinefit.io.limits.MAX_IMAGE_PIXELS` pixels (and, with ``min_side``, at
+    least :data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side) by its header, before
+    any pixel is decoded."""
+    with open_input(p, missing="image file not found") as f, _image_errors(p), Image.open(f) as im:
+        w, h = int(im.width), int(im.height)
+        if w * h > MAX_IMAGE_PIXELS or min_side:
+            check_image_size(w, h, p, what="image")
+        yield im
 
 
 #: EXIF orientations that swap width and height (a rotation by 90 degrees).
@@ -86,11 +106,12 @@ def read_image(path: StrPath, reduce_to: tuple[int, int] | None = None) -> U8Ima
     docstring); other formats are read at their full size. None = full size.
 
     Raises:
-        InputError: naming the file if it is missing, unreadable or not an image Pillow
-            can decode (also a truncated file).
+        InputError: naming the file if it is missing, not a regular file, unreadable, not
+            an image Pillow can decode (also a truncated file) or, by its header, larger
+            than :data:`~turbinefit.io.limits.MAX_IMAGE_PIXELS` (refused before decoding).
     """
     p = Path(path)
-    with _image_errors(p), Image.open(p) as im:
+    with _open_image(p) as im:
         jpeg = reduce_to is not None and im.format == "JPEG"
         if reduce_to is not None and jpeg:
             w, h = (reduce_to[1], reduce_to[0]) if _swaps_axes(im) else reduce_to
@@ -115,7 +136,7 @@ def image_size(path: StrPath) -> tuple[int, int]:
         InputError: as :func:`read_image`, for a missing file or one that is not an image.
     """
     p = Path(path)
-    with _image_errors(p), Image.open(p) as im:
+    with _open_image(p, min_side=True) as im:
         w, h = int(im.width), int(im.height)
         return (h, w) if _swaps_axes(im) else (w, h)
 
@@ -127,7 +148,7 @@ def check_image(path: StrPath) -> tuple[int, int]:
         InputError: as :func:`read_image`, for a missing file or one that is not an image.
     """
     p = Path(path)
-    with _image_errors(p), Image.open(p) as im:
+    with _open_image(p, min_side=True) as im:
         return int(im.width), int(im.height)
 
 

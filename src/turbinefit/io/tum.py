@@ -16,7 +16,9 @@ Inside turbinefit quaternions are wxyz (see :mod:`turbinefit.geometry.se3`); thi
 is the only place that converts. On reading, a quaternion whose norm is within 1e-3 of 1
 is normalised silently (and flipped to w >= 0); anything further off, zero, non-numeric or
 non-finite is an :class:`~turbinefit.errors.InputError` naming the file and line, as are
-a wrong number of columns, non-increasing timestamps and a file without poses.
+a wrong number of columns, non-increasing timestamps, a file without poses, and absurd
+magnitudes: a translation beyond 1e8 m or a timestamp beyond 1e11 s
+(:mod:`turbinefit.io.limits`). Files above 256 MiB are refused before reading.
 
 On writing, timestamps are printed ``%.6f`` (microseconds), translations ``%.9f``
 (nanometres) and quaternions ``%.12f``, so a read-back reproduces translations to 5e-10 m
@@ -33,9 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.se3 import SE3
 from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
+from turbinefit.io.limits import MAX_COORDINATE_M, MAX_TIMESTAMP_S
 
 FloatArray = NDArray[np.float64]
 
@@ -87,6 +90,14 @@ def read_tum_lines(path: StrPath) -> TumTrajectory:
                 raise InputError(f"non-finite value {token!r}", path=path, line=lineno)
             values.append(v)
         t, tx, ty, tz, qx, qy, qz, qw = values
+        if not abs(t) <= MAX_TIMESTAMP_S:
+            raise InputError(f"timestamp {tokens[0]} is beyond {MAX_TIMESTAMP_S:g} s (seconds "
+                             "expected)", path=path, line=lineno)
+        for axis, token, v in zip("xyz", tokens[1:4], (tx, ty, tz), strict=True):
+            if not abs(v) <= MAX_COORDINATE_M:
+                raise InputError(f"translation t{axis} = {token} m is beyond "
+                                 f"{MAX_COORDINATE_M:g} m (metres expected)", path=path,
+                                 line=lineno)
         norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         if norm < 1e-12:
             raise InputError("quaternion has zero norm", path=path, line=lineno)
@@ -95,7 +106,8 @@ def read_tum_lines(path: StrPath) -> TumTrajectory:
                              f"(tolerance {QUAT_NORM_TOLERANCE:g})", path=path, line=lineno)
         if not t > prev_t:
             raise InputError(f"timestamp {tokens[0]} is not after the previous one "
-                             f"({stamps[-1]!r}, line {lines[-1]})", path=path, line=lineno)
+                             f"({plain_number(stamps[-1])}, line {lines[-1]})", path=path,
+                             line=lineno)
         prev_t = t
         stamps.append(t)
         # file xyzw -> package wxyz
@@ -138,8 +150,8 @@ def format_timestamps(timestamps: ArrayLike, path: StrPath | None = None) -> lis
     bad = np.nonzero(np.diff(parsed) <= 0.0)[0]
     if bad.size:
         k = int(bad[0]) + 1
-        raise InputError(f"timestamp {k} ({t[k]!r}) is not after timestamp {k - 1} "
-                         f"({t[k - 1]!r}) at microsecond resolution", path=path,
+        raise InputError(f"timestamp {k} ({plain_number(t[k])}) is not after timestamp {k - 1} "
+                         f"({plain_number(t[k - 1])}) at microsecond resolution", path=path,
                          field="timestamps")
     return texts
 

@@ -19,7 +19,9 @@ radians and are not wrapped on reading or writing.
 
 Reading raises :class:`~turbinefit.errors.InputError` naming the file and key for a missing
 key, an unknown key, a duplicate key, a non-numeric or non-finite value, or a value out of
-range (``tower_height > 0``, ``blade_length > 0``, ``nacelle_length >= 0``). Writing checks
+range (``tower_height > 0``, ``blade_length > 0``, ``nacelle_length >= 0``) or absurd
+(lengths beyond 1 km, base coordinates beyond 1e8 m, angles beyond 1000 rad:
+:mod:`turbinefit.io.limits`; checked on reading only). Writing checks
 the same ranges (so every written file can be read back; call
 :meth:`TurbineParams.canonical` first to turn a negative blade length into a positive one)
 and uses ``repr`` precision, so a round trip is exact.
@@ -27,8 +29,9 @@ and uses ``repr`` precision, so a round trip is exact.
 
 from __future__ import annotations
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.io.atomic import StrPath, write_text_atomic
+from turbinefit.io.limits import MAX_ANGLE_RAD, MAX_COORDINATE_M, MAX_LENGTH_M
 from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float
 from turbinefit.turbine.model import TurbineParams
 
@@ -40,10 +43,23 @@ _UNITS = dict(zip(TurbineParams.NAMES, ("m", "m", "m", "rad", "m", "rad", "m"), 
 def _check_ranges(values: dict[str, float], path: StrPath | None) -> None:
     for key in ("tower_height", "blade_length"):
         if not values[key] > 0.0:
-            raise InputError(f"must be > 0, got {values[key]!r}", path=path, field=key)
+            raise InputError(f"must be > 0, got {plain_number(values[key])}", path=path,
+                             field=key)
     if not values["nacelle_length"] >= 0.0:
-        raise InputError(f"must be >= 0, got {values['nacelle_length']!r}", path=path,
+        raise InputError(f"must be >= 0, got {plain_number(values['nacelle_length'])}", path=path,
                          field="nacelle_length")
+
+
+def _check_magnitudes(values: dict[str, float], path: StrPath) -> None:
+    """Refuse values no turbine has (:mod:`turbinefit.io.limits`), on reading."""
+    limits = {"base_x": MAX_COORDINATE_M, "base_y": MAX_COORDINATE_M,
+              "heading": MAX_ANGLE_RAD, "blade_rotation": MAX_ANGLE_RAD,
+              "tower_height": MAX_LENGTH_M, "nacelle_length": MAX_LENGTH_M,
+              "blade_length": MAX_LENGTH_M}
+    for key, limit in limits.items():
+        if not abs(values[key]) <= limit:
+            raise InputError(f"{plain_number(values[key])} {_UNITS[key]} is beyond the "
+                             f"plausible {limit:g} {_UNITS[key]}", path=path, field=key)
 
 
 def read_turbine_yaml(path: StrPath) -> TurbineParams:
@@ -65,6 +81,7 @@ def read_turbine_yaml(path: StrPath) -> TurbineParams:
             raise InputError("missing", path=path, field=key)
         values[key] = parse_number(data[key], path, key)
     _check_ranges(values, path)
+    _check_magnitudes(values, path)
     return TurbineParams(**values)
 
 

@@ -26,6 +26,7 @@ import yaml
 
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, read_text
+from turbinefit.io.limits import MAX_SETTINGS_BYTES
 
 _OPENCV_TAG = re.compile(r"!!opencv-(?:nd-)?matrix\b")
 #: A decimal number as text, e.g. ``1e-5``, which YAML 1.1 (PyYAML) reads as a string.
@@ -63,10 +64,12 @@ def safe_load_strict(text: str) -> Any:
 def load_yaml_mapping(path: StrPath) -> dict[str, Any]:
     """Parse a YAML file (ROS or OpenCV FileStorage flavour) whose top level is a mapping.
 
-    The OpenCV ``%YAML:1.0`` directive and ``!!opencv-matrix`` tags are blanked out first
-    (line numbers are kept). Raises :class:`InputError` naming the file (and line).
+    The file must be a regular file of at most
+    :data:`~turbinefit.io.limits.MAX_SETTINGS_BYTES`. The OpenCV ``%YAML:1.0`` directive
+    and ``!!opencv-matrix`` tags are blanked out first (line numbers are kept). Raises
+    :class:`InputError` naming the file (and line).
     """
-    text = read_text(path)
+    text = read_text(path, MAX_SETTINGS_BYTES)
     if text.startswith("%YAML:"):
         text = text[text.find("\n"):] if "\n" in text else ""
     text = _OPENCV_TAG.sub("", text)

@@ -29,6 +29,7 @@ from turbinefit.io.images import (
     read_image,
     resize_image,
 )
+from turbinefit.io.limits import MIN_IMAGE_SIDE
 from turbinefit.jobs.outputs import DETECT_OUTPUTS
 
 #: The overlay PNG is at most this wide [px] (the photo's width if it is narrower): four
@@ -93,6 +94,12 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
     sizes = [image_size(p) for p in paths]  # headers only: a non-image fails here
     DETECT_OUTPUTS.check(out, [p for p in inputs if Path(p).is_dir()] + paths, overwrite)
     pool = (detect_options or DetectOptions()).pool(model, threads)
+    for p, (w, h) in zip(paths, sizes, strict=True):  # maps a flight folder would refuse
+        mw, mh = output_size(pool.detector, w, h, max_size)
+        if min(mw, mh) < MIN_IMAGE_SIDE:
+            raise InputError(f"a {w}x{h} photo gives heat-maps of {mw}x{mh} px; each side must "
+                             f"be at least {MIN_IMAGE_SIDE} px (a larger --max-size, or a less "
+                             "elongated photo)", path=p)
     t0 = time.perf_counter()
     with DETECT_OUTPUTS.writing(out, overwrite) as tmp:
 

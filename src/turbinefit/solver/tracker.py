@@ -326,8 +326,8 @@ class Tracker:
         if not math.isfinite(timestamp):
             raise KeyframeError(k, "timestamp is not finite")
         if self._times and timestamp <= self._times[-1]:
-            raise KeyframeError(k, f"timestamp {timestamp!r} is not after the previous one "
-                                f"({self._times[-1]!r})")
+            raise KeyframeError(k, f"timestamp {float(timestamp)!r} is not after the previous "
+                                f"one ({float(self._times[-1])!r})")
         if world_T_cam.batch_shape != () or not np.all(np.isfinite(world_T_cam.wxyz_xyz)):
             raise KeyframeError(k, "pose must be one finite SE3")
         maps = np.asarray(heatmaps)

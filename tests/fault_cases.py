@@ -1,0 +1,332 @@
+"""The cases of the fault corpus (``tests/faults.py`` runs them): one per fault class,
+each a mutation of the base flight and a command line."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from faults import (
+    Case,
+    Mutation,
+    both,
+    camera,
+    cmd,
+    column,
+    cut,
+    directory,
+    fifo,
+    fit,
+    k_entry,
+    npy,
+    png_header,
+    set_value,
+    simulate,
+    sparse,
+    sub,
+    symlink,
+    track,
+    tum,
+    unlink,
+    write,
+)
+
+# ------------------------------------------------------------------ the cases
+
+CAM, KF, TURB = r"camera\.yaml", r"keyframes\.txt", r"turbine\.yaml"
+ODO, GT, GTT = r"odometry\.txt", r"groundtruth\.txt", r"turbine_groundtruth\.yaml"
+HM = r"heatmaps/2\.000000\.npy"
+PHOTO = r"images/2\.000000\.png"
+BIG = 300 << 20  # a sparse file above every text limit
+OK_ODOMETRY: Mutation = lambda f: shutil.copy(f / "keyframes.txt", f / "odometry.txt")  # noqa: E731
+
+
+def _cases() -> list[Case]:
+    c: list[Case] = []
+
+    def add(name: str, argv: Callable[[Path], list[str]], mutate: Mutation | None,
+            *patterns: str, hang: bool = False, usage: bool = False) -> None:
+        c.append(Case(name, argv, mutate, patterns, hang, usage))
+
+    # -- files that are not regular files, or too large (every reader)
+    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF), ("turbine.yaml", TURB),
+                      ("groundtruth.txt", GT), ("turbine_groundtruth.yaml", GTT),
+                      ("heatmaps/2.000000.npy", HM)):
+        add(f"fifo-{name}", fit(), fifo(name), pat, "named pipe", hang=True)
+        add(f"devzero-{name}", fit(), symlink(name, "/dev/zero"), pat, "character device")
+    add("fifo-odometry.txt", fit(), fifo("odometry.txt"), ODO, "named pipe", hang=True)
+    add("fifo-camera.yaml-track", track(), fifo("camera.yaml"), CAM, "named pipe", hang=True)
+    add("fifo-photo", fit("--from-images"), fifo("images/2.000000.png"), PHOTO, "named pipe",
+        hang=True)
+    add("fifo-config", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "{w}/flight/c.yaml"),
+        fifo("c.yaml"), r"c\.yaml", "named pipe", hang=True)
+    add("devnull-model", fit("--from-images", "--model", "/dev/null"), None, r"/dev/null",
+        "character device")
+    for name, pat in (("camera.yaml", CAM), ("turbine.yaml", TURB), ("keyframes.txt", KF)):
+        add(f"huge-{name}", fit(), sparse(name, BIG), pat, r"\(300 MiB\), larger than the")
+    add("big-camera.yaml", fit(), sparse("camera.yaml", 2 << 20), CAM,
+        r"2097152 bytes \(2 MiB\), larger than the 1 MiB")
+    add("dir-camera.yaml", fit(), directory("camera.yaml"), CAM, "directory")
+    add("dir-heatmap", fit(), both(unlink("heatmaps/2.000000.npy"),
+                                   lambda f: (f / "heatmaps/2.000000.npy").mkdir()), HM, "directory")
+    add("heatmaps-is-a-file", fit(), both(unlink("heatmaps"), write("heatmaps", "x")),
+        r"heatmaps", "not a directory")
+    add("loop-camera.yaml", fit(), symlink("camera.yaml", "camera.yaml"), CAM, "cannot access")
+
+    # -- missing files
+    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF), ("turbine.yaml", TURB)):
+        add(f"missing-{name}", fit(), unlink(name), pat, "missing")
+    add("missing-heatmap", fit(), unlink("heatmaps/2.000000.npy"), HM, r"missing", r"line 5")
+    add("missing-folder", cmd("fit", "{w}/nothing", "--out", "{w}/out"), None, r"nothing",
+        "not found")
+    add("missing-photo", fit("--from-images"), unlink("images/2.000000.png"), r"images",
+        r"no photo for keyframe 2")
+    add("missing-config", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "{w}/no.yaml"),
+        None, r"no\.yaml", "not found")
+
+    # -- camera.yaml
+    add("camera-cut-before-distortion", fit(), cut("camera.yaml", "distortion_model"), CAM,
+        r"distortion_coefficients", r"cut short")
+    add("camera-cut-after-model", fit(), cut("camera.yaml", "distortion_coefficients"), CAM,
+        r"distortion_coefficients", "missing")
+    add("camera-3-coefficients", fit(),
+        camera(lambda d: d["distortion_coefficients"].update(cols=3, data=[0.1, 0.0, 0.0])),
+        CAM, r"3 distortion coefficients")
+    add("camera-rational-5", fit(), camera(lambda d: d.update(distortion_model="rational_polynomial")),
+        CAM, r"has 0 or 8")
+    add("camera-equidistant", fit(), camera(lambda d: d.update(distortion_model="equidistant")),
+        CAM, r"unsupported distortion model")
+    add("camera-distortion-1e6", fit(),
+        camera(lambda d: d["distortion_coefficients"]["data"].__setitem__(0, 1e6)), CAM,
+        r"coefficient 0 is 1000000\.0")
+    add("camera-skew-1e12", fit(), camera(k_entry(1, 1e12)), CAM, r"skew 1000000000000\.0")
+    add("camera-fx-zero", fit(), camera(k_entry(0, 0.0)), CAM, r"got 0\.0")
+    add("camera-fx-negative", fit(), camera(k_entry(0, -50.0)), CAM, r"got -50\.0")
+    add("camera-fx-1e9", fit(), camera(k_entry(0, 1e9)), CAM, r"not a focal length")
+    add("camera-fy-tiny", fit(), camera(k_entry(4, 0.5)), CAM, r"fy / fx")
+    add("camera-cx-far", fit(), camera(k_entry(2, 1e6)), CAM, r"principal point cx")
+    add("camera-cy-far", fit(), camera(k_entry(5, -1e6)), CAM, r"principal point cy")
+    add("camera-fx-nan", fit(), sub("camera.yaml", r"data: \[[0-9.]+,", "data: [.nan,"), CAM,
+        r"finite")
+    add("camera-width-7", fit(), camera(lambda d: d.update(image_width=7)), CAM, r"7x48 px")
+    add("camera-width-huge", fit(), camera(lambda d: d.update(image_width=10**7)), CAM,
+        r"200 MP limit")
+    add("camera-width-text", fit(), camera(lambda d: d.update(image_width="wide")), CAM,
+        r"not a number")
+    add("camera-width-float", fit(), camera(lambda d: d.update(image_width=64.5)), CAM,
+        r"integer")
+    add("camera-K-2x3", fit(), camera(lambda d: d["camera_matrix"].update(rows=2, cols=3,
+                                                                         data=[1] * 6)),
+        CAM, r"3x3")
+    add("camera-K-rows-mismatch", fit(), camera(lambda d: d["camera_matrix"].update(rows=4)),
+        CAM, r"rows \* cols")
+    add("camera-K-bottom-row", fit(), camera(k_entry(8, 2.0)), CAM, r"not a camera matrix")
+    add("camera-no-matrix", fit(), camera(lambda d: d.pop("camera_matrix")), CAM, r"missing")
+    add("camera-duplicate-key", fit(), write("camera.yaml", "image_width: 64\nimage_width: 64\n"),
+        CAM, r"duplicate key")
+    add("camera-malformed", fit(), write("camera.yaml", "image_width: [64\n"), CAM, r"invalid YAML")
+    add("camera-empty", fit(), write("camera.yaml", ""), CAM, r"empty")
+    add("camera-list", fit(), write("camera.yaml", "- 1\n"), CAM, r"mapping")
+    add("camera-not-utf8", fit(), write("camera.yaml", b"\xff\xfe\x00"), CAM, r"UTF-8")
+    add("camera-model-not-string", fit(), camera(lambda d: d.update(distortion_model=5)), CAM,
+        r"distortion_model", r"string")
+
+    # -- keyframes.txt and the other trajectories
+    add("tum-translation-1e300", fit(), tum("keyframes.txt", 2, column(1, "1e300")), KF + r":5:",
+        r"tx = 1e300 m is beyond")
+    add("tum-translation-1e9", fit(), tum("keyframes.txt", 4, column(3, "-1e9")), KF + r":7:",
+        r"tz")
+    add("tum-timestamp-1e300", fit(), tum("keyframes.txt", 5, column(0, "1e300")), KF + r":8:",
+        r"timestamp 1e300")
+    add("tum-columns", fit(), tum("keyframes.txt", 1, lambda t: t[:-1]), KF + r":4:",
+        r"expected 8 columns")
+    add("tum-nine-columns", fit(), tum("keyframes.txt", 1, lambda t: [*t, "0"]), KF, r"got 9")
+    add("tum-zero-quaternion", fit(), tum("keyframes.txt", 2, lambda t: t[:4] + ["0"] * 4),
+        KF + r":5:", r"zero norm")
+    add("tum-long-quaternion", fit(), tum("keyframes.txt", 2, lambda t: t[:4] + ["1"] * 4),
+        KF + r":5:", r"norm 2")
+    add("tum-nan", fit(), tum("keyframes.txt", 3, column(2, "nan")), KF + r":6:", r"non-finite")
+    add("tum-inf", fit(), tum("keyframes.txt", 3, column(2, "-inf")), KF + r":6:", r"non-finite")
+    add("tum-text", fit(), tum("keyframes.txt", 3, column(2, "one")), KF + r":6:", r"not a number")
+    add("tum-underscore", fit(), tum("keyframes.txt", 3, column(2, "1_0")), KF, r"not a number")
+    add("tum-order", fit(), tum("keyframes.txt", 3, column(0, "0.5")), KF + r":6:", r"not after")
+    add("tum-duplicate-time", fit(), tum("keyframes.txt", 3, column(0, "1.0")), KF, r"not after")
+    add("tum-empty", fit(), write("keyframes.txt", "# nothing\n"), KF, r"no poses")
+    add("tum-not-utf8", fit(), write("keyframes.txt", b"0 \xff\n"), KF, r"UTF-8")
+    add("tum-extra-keyframe", fit(),
+        both(sub("keyframes.txt", r"\Z", "6.000000 0 0 0 0 0 0 1\n"), unlink("groundtruth.txt")),
+        r"heatmaps/6\.000000\.npy",
+        r"missing")
+    add("odometry-shifted", fit(), both(OK_ODOMETRY, tum("odometry.txt", 2, column(0, "1.5"))),
+        ODO + r":5:", r"differs from keyframe 2")
+    add("odometry-short", fit(), both(OK_ODOMETRY, sub("odometry.txt", r"^5\.000000 .*\n", "")),
+        ODO, r"5 poses but keyframes\.txt has 6")
+    add("odometry-bad-line", fit(), both(OK_ODOMETRY, tum("odometry.txt", 1, lambda t: t[:3])),
+        ODO + r":4:", r"columns")
+    add("odometry-1e300", fit(), both(OK_ODOMETRY, tum("odometry.txt", 1, column(2, "1e300"))),
+        ODO + r":4:", r"ty")
+    add("groundtruth-shifted", fit(), tum("groundtruth.txt", 3, column(0, "2.5")), GT,
+        r"2\.5 differs")
+    add("groundtruth-short", fit(), sub("groundtruth.txt", r"^5\.000000 .*\n", ""), GT,
+        r"5 poses")
+    add("groundtruth-1e300", fit(), tum("groundtruth.txt", 3, column(1, "1e300")), GT + r":6:",
+        r"beyond")
+    add("track-tum-1e300", track(), tum("keyframes.txt", 2, column(1, "1e300")), KF + r":5:",
+        r"beyond")
+
+    # -- turbine.yaml and turbine_groundtruth.yaml
+    for key, value, pat in (("tower_height", "1e300", r"1e\+300 m is beyond"),
+                            ("blade_length", "5000", r"5000\.0 m is beyond the plausible 1000"),
+                            ("nacelle_length", "2e3", r"beyond"),
+                            ("base_x", "-1e300", r"beyond"), ("heading", "1e300", r"rad"),
+                            ("blade_rotation", "-1e5", r"rad"),
+                            ("tower_height", "-5", r"> 0, got -5\.0"),
+                            ("blade_length", "0", r"> 0, got 0\.0"),
+                            ("nacelle_length", "-1", r">= 0"),
+                            ("tower_height", ".nan", r"finite"), ("heading", "north", r"number"),
+                            ("base_y", "[1, 2]", r"number"), ("base_y", "null", r"number")):
+        add(f"turbine-{key}-{value}", fit(), sub("turbine.yaml", rf"^{key}:.*$", f"{key}: {value}"),
+            TURB + rf" \[{key}\]", pat)
+    add("turbine-missing-key", fit(), sub("turbine.yaml", r"^heading:.*$", ""), TURB, r"missing")
+    add("turbine-unknown-key", fit(), sub("turbine.yaml", r"\Z", "rotor: 3\n"), TURB,
+        r"unknown key")
+    add("turbine-duplicate-key", fit(), sub("turbine.yaml", r"\Z", "heading: 3\n"), TURB,
+        r"duplicate key")
+    add("turbine-malformed", fit(), sub("turbine.yaml", r"^heading:.*$", "heading: [1"), TURB,
+        r"invalid YAML")
+    add("turbine-gt-1e300", fit(), sub("turbine_groundtruth.yaml", r"^tower_height:.*$",
+                                       "tower_height: 1e300"), GTT, r"beyond")
+    add("track-turbine-1e300", track(), sub("turbine.yaml", r"^tower_height:.*$",
+                                            "tower_height: 1e300"), TURB, r"beyond")
+
+    # -- heat-maps
+    for value, pat in ((1.5, r"holds 1\.5, outside \[0, 1\]"), (-1.0, r"holds -1\.0"),
+                       (1e30, r"outside"), (np.inf, r"holds inf"), (-np.inf, r"holds -inf"),
+                       (np.nan, r"NaN"), (1.002, r"1\.00")):
+        add(f"heatmap-value-{value}", fit(), npy(2, set_value(5, value)), HM,
+            r"channel 5 \(line_nacelle\)", pat)
+    add("heatmaps-all-minus-1", fit(), npy(None, lambda a: np.full_like(a, -1.0)),
+        r"heatmaps/0\.000000\.npy", r"holds -1\.0")
+    add("heatmaps-all-255", fit(), npy(None, lambda a: a * 255), r"heatmaps/0\.000000\.npy",
+        r"outside \[0, 1\]")
+    add("track-heatmap-value", track(), npy(2, set_value(0, 2.0)), HM, r"point_base")
+    add("heatmap-shape", fit(), npy(2, lambda a: a[:, ::2, ::2].copy()), HM,
+        r"shape \(7, 24, 32\), expected \(7, 48, 64\)")
+    add("heatmap-channels", fit(), npy(2, lambda a: a[:6].copy()), HM, r"shape \(6, 48, 64\)")
+    add("heatmap-2d", fit(), npy(0, lambda a: a[0].copy()), r"heatmaps/0\.000000\.npy",
+        r"expected \(7, height, width\)")
+    add("heatmaps-tiny", fit(), npy(None, lambda a: a[:, :10, :12].copy()),
+        r"heatmaps/0\.000000\.npy", r"12x10 px; each side must be at least 24")
+    add("heatmaps-not-a-scale", fit(), npy(None, lambda a: a[:, :, :40].copy()),
+        r"heatmaps/0\.000000\.npy", r"do not fit the photos")
+    add("heatmap-float64", fit(), npy(2, lambda a: a.astype(np.float64)), HM, r"dtype <f8")
+    add("heatmap-big-endian", fit(), npy(2, lambda a: a.astype(">f4")), HM, r"dtype >f4")
+    add("heatmap-fortran", fit(), npy(2, np.asfortranarray), HM, r"Fortran")
+    add("heatmap-text", fit(), write("heatmaps/2.000000.npy", "hello"), HM, r"not a \.npy")
+    add("heatmap-truncated", fit(), lambda f: (f / "heatmaps/2.000000.npy").write_bytes(
+        (f / "heatmaps/2.000000.npy").read_bytes()[:500]), HM, r"truncated")
+    add("heatmap-bad-header", fit(), lambda f: (f / "heatmaps/2.000000.npy").write_bytes(
+        b"\x93NUMPY\x01\x00\x10\x00{'descr': <f4}  \n"), HM, r"header")
+    add("heatmap-version-9", fit(), lambda f: (f / "heatmaps/2.000000.npy").write_bytes(
+        b"\x93NUMPY\x09\x00" + b"\0" * 100), HM, r"version")
+    add("heatmaps-missing-dir", fit(), both(unlink("heatmaps"), unlink("images")), r"heatmaps",
+        r"missing")
+
+    # -- photos (fit from images)
+    add("photo-30000px", fit("--from-images"), write("images/2.000000.png", png_header(30000, 30000)),
+        PHOTO, r"30000x30000 px \(900 MP\), more than the 200 MP limit")
+    add("photo-100000px", fit("--from-images"),
+        write("images/2.000000.png", png_header(100000, 100000)), PHOTO, r"200 MP limit")
+    add("photo-size-mismatch", fit("--from-images"),
+        write("images/2.000000.png", png_header(128, 96)), PHOTO, r"128x96 but camera\.yaml is 64x48")
+    add("photo-not-an-image", fit("--from-images"), write("images/2.000000.png", "text"), PHOTO,
+        r"not an image")
+    add("photo-devzero", fit("--from-images"), symlink("images/2.000000.png", "/dev/zero"), PHOTO,
+        r"character device")
+    add("model-missing", fit("--from-images", "--model", "/nonexistent.onnx"), None,
+        r"nonexistent\.onnx", r"not found")
+
+    # -- fit and track options and config files
+    add("config-devzero", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "/dev/zero"),
+        None, r"/dev/zero", r"character device")
+    add("config-huge", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "{w}/flight/c.yaml"),
+        both(write("c.yaml", "mode: joint\n"), sparse("c.yaml", 2 << 20)), r"c\.yaml", r"1 MiB")
+    add("config-unknown", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "{w}/flight/c.yaml"),
+        write("c.yaml", "bogus: 1\n"), r"c\.yaml", r"bogus")
+    add("config-bad-value", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config",
+                                "{w}/flight/c.yaml"),
+        write("c.yaml", "max_iterations: 0\n"), r"max_iterations")
+    add("config-nan", cmd("fit", "{w}/flight", "--out", "{w}/out", "--config", "{w}/flight/c.yaml"),
+        write("c.yaml", "lambda_pair: .nan\n"), r"lambda_pair")
+    for opts, pat in ((["--preset", "nope"], r"--preset"), (["--max-iterations", "0"], r">= 1"),
+                      (["--pixel-sigma", "-1"], r"pixel_sigma"),
+                      (["--lambda-points", "nan"], r"lambda_points"),
+                      (["--points", "none", "--lines", "none"], r"both be none")):
+        add(f"fit-option-{'-'.join(opts)}", fit(*opts), None, pat)
+    add("fit-out-is-input", cmd("fit", "{w}/flight", "--out", "{w}/flight"), None, r"input")
+    add("fit-out-in-file", cmd("fit", "{w}/flight", "--out", "{w}/camera.yaml/x"),
+        lambda f: (f.parent / "camera.yaml").write_text("x"), r"camera\.yaml", r"not a directory")
+    add("track-option-window", track("--window", "1"), None, r"window")
+
+    # -- simulate options
+    # the last ones argparse's own types refuse (its usage, then one error line)
+    for opts, pat, usage in ((["--keyframes", "100000000000"], r"at most 1000000", False),
+                             (["--width", "100000", "--height", "100000"], r"200 MP limit", False),
+                             (["--width", "7"], r"7x240 px", False),
+                             (["--height", "10"], r"320x10 px", False),
+                             (["--heatmap-size", "20"], r"20x15 px", False),
+                             (["--heatmap-size", "16x12"], r"16x12 px", False),
+                             (["--heatmap-size", "100x10"], r"heatmap", False),
+                             (["--width", "8000", "--height", "240"], r"320x10", False),
+                             (["--keyframes", "900000"], r"need about .* of memory", False),
+                             (["--width", "20000", "--height", "9999", "--images"], r"memory",
+                              False),
+                             (["--preset", "nope"], r"--preset", False),
+                             (["--turbine", "nope"], r"turbine", False),
+                             (["--drift-m", "nan"], r"drift", False),
+                             (["--heatmap-noise", "-1"], r"--heatmap-noise", False),
+                             (["--heatmap-size", "axb"], r"WIDTHxHEIGHT", True),
+                             (["--keyframes", "0"], r"keyframes", True),
+                             (["--seed", "-1"], r"seed", True),
+                             (["--width", "-3"], r"--width", True)):
+        add(f"simulate-{'-'.join(opts)}", simulate(*opts), None, pat, usage=usage)
+
+    # -- detect, evaluate, report
+    add("detect-fifo", cmd("detect", "{w}/flight/images/2.000000.png", "--out", "{w}/out",
+                           "--quiet"), fifo("images/2.000000.png"), PHOTO, r"named pipe",
+        hang=True)
+    add("detect-huge", cmd("detect", "{w}/flight/images", "--out", "{w}/out", "--quiet"),
+        write("images/2.000000.png", png_header(30000, 30000)), PHOTO, r"200 MP limit")
+    add("detect-tiny", cmd("detect", "{w}/flight/images/2.000000.png", "--out", "{w}/out",
+                           "--quiet"),
+        write("images/2.000000.png", png_header(20, 20)), PHOTO, r"at least 24")
+    add("detect-elongated", cmd("detect", "{w}/flight/images/2.000000.png", "--out", "{w}/out",
+                                "--quiet"),
+        write("images/2.000000.png", png_header(4000, 30)), PHOTO, r"heat-maps of 160x1 px")
+    add("detect-missing", cmd("detect", "{w}/flight/nothing.png", "--out", "{w}/out", "--quiet"),
+        None, r"nothing\.png")
+    add("detect-model-fifo", cmd("detect", "{w}/flight/images", "--out", "{w}/out", "--quiet",
+                                 "--model", "{w}/flight/m.onnx"), fifo("m.onnx"), r"m\.onnx",
+        r"named pipe", hang=True)
+    add("detect-model-not-onnx", cmd("detect", "{w}/flight/images", "--out", "{w}/out", "--quiet",
+                                     "--model", "{w}/flight/camera.yaml"), None, r"camera\.yaml",
+        r"ONNX")
+    add("evaluate-labels-fifo", cmd("evaluate", "--labels", "{w}/flight/l.json", "--images-dir",
+                                    "{w}/flight/images", "--quiet"), fifo("l.json"), r"l\.json",
+        r"named pipe", hang=True)
+    add("evaluate-labels-devzero", cmd("evaluate", "--labels", "/dev/zero", "--images-dir",
+                                       "{w}/flight/images", "--quiet"), None, r"/dev/zero",
+        r"character device")
+    add("evaluate-labels-not-json", cmd("evaluate", "--labels", "{w}/flight/camera.yaml",
+                                        "--images-dir", "{w}/flight/images", "--quiet"), None,
+        r"camera\.yaml", r"JSON")
+    add("report-rows-fifo", cmd("report", "{w}/flight/exp"),
+        both(write("exp/sweep.yaml", "study: unary\n"), fifo("exp/rows.csv")), r"exp",
+        hang=True)
+    add("report-missing", cmd("report", "{w}/flight/nothing"), None, r"nothing")
+    return c
+
+
+CASES: list[Case] = _cases()
