@@ -92,7 +92,11 @@ class FitSummary:
                 ],
             },
             "turbine": {"initial": self.initial_turbine.to_dict(),
-                        "optimised": r.turbine.to_dict()},
+                        "optimised": r.turbine.to_dict(),
+                        "std": None if r.signals is None else r.signals.theta_std_dict()},
+            "verdict": r.verdict,
+            "reasons": list(r.reasons),
+            "signals": None if r.signals is None else r.signals.to_dict(),
             "timing_s": {k: round(v, 4) for k, v in self.timings.items()},
         }
         if self.before is not None and self.after is not None:
@@ -149,9 +153,11 @@ def fit_folder(
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
     Writes ``keyframes.txt`` (optimised ``world_T_cam``, TUM), ``turbine.yaml`` (fitted
-    theta), ``summary.json`` (:class:`FitSummary`), ``config.yaml`` (the resolved options)
+    theta and its standard deviations), ``summary.json`` (:class:`FitSummary`, with the
+    verdict, its reasons and signals), ``config.yaml`` (the resolved options)
     and, unless ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with
-    ground truth) and ``cost.png``.
+    ground truth) and ``cost.png``. The outputs are written whatever the verdict
+    (``report.result.verdict``): a failed fit is kept for inspection.
 
     ``out_dir`` is checked before anything is read (:mod:`turbinefit.jobs.outputs`): not
     ``flight_dir`` or ``config_path`` (the file ``config`` was read from), nor inside or
@@ -198,7 +204,9 @@ def fit_folder(
     t2 = time.perf_counter()
     with FIT_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
-        write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT)
+        write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT,
+                           std=None if result.signals is None
+                           else result.signals.theta_std_dict())
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()
