@@ -25,8 +25,8 @@ from support import (
 
 from turbinefit.cli import main
 from turbinefit.io import read_turbine_yaml
-from turbinefit.io.turbine_yaml import read_turbine_std
 from turbinefit.io.images import write_png
+from turbinefit.io.turbine_yaml import read_turbine_std
 from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
 from turbinefit.solver.config import FitConfig
 
