@@ -210,7 +210,7 @@ def _assess(problem: FitProblem, initial: SE3, poses: SE3, theta: FloatArray,
     if finite and problem.optimise_theta:
         cov = theta_covariance(problem.linearize(poses, theta, corr))
     if finite:
-        image = image_evidence(problem.data, poses, theta, problem.config, kf)
+        image = image_evidence(problem.data, poses, theta, problem.config, kf, corr)
     else:
         none = np.zeros(kf.size, dtype=np.int64)
         image = ImageEvidence(np.zeros(kf.size, dtype=bool), none, none, none, np.zeros(0),

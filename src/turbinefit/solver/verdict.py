@@ -45,7 +45,13 @@ from turbinefit.costs.projection import project_points
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.linalg import arrow_covariance
-from turbinefit.solver.problem import FitProblem, Linearization, ProblemData, pair_sqrt_information
+from turbinefit.solver.problem import (
+    Correspondences,
+    FitProblem,
+    Linearization,
+    ProblemData,
+    pair_sqrt_information,
+)
 from turbinefit.turbine.model import THETA_LOWER, THETA_UPPER, TurbineParams
 
 FloatArray = NDArray[np.float64]
@@ -128,25 +134,33 @@ class ImageEvidence:
 
 def _area_share(data: ProblemData, keyframes: NDArray[np.int_], threshold: float) -> FloatArray:
     """(N,) per keyframe the largest share of the image any channel is >= threshold over,
-    estimated on a grid of about 80 columns (a share, not a peak: the grid may step over
-    a peak but not over an area)."""
+    estimated on a grid of about 40 x 30 pixels (a share, not a peak: the grid may step
+    over a peak but not over an area)."""
     maps = data.heatmaps
-    step = max(1, maps.width // 80)
-    out = np.empty(keyframes.size)
-    for i, k in enumerate(keyframes.tolist()):
-        grid = np.asarray(maps[k][:, ::step, ::step])
-        out[i] = float(np.max(np.mean(grid >= threshold, axis=(1, 2))))
+    step = max(1, maps.width // 40)
+    kf = keyframes.tolist()
+    out = np.empty(len(kf))
+    for start in range(0, len(kf), 128):  # a few MB at a time
+        grid = np.stack([maps[k][:, ::step, ::step] for k in kf[start:start + 128]])
+        out[start:start + grid.shape[0]] = np.max(np.mean(grid >= threshold, axis=(2, 3)),
+                                                  axis=1)
     return out
 
 
 def image_evidence(data: ProblemData, world_T_cam: SE3, theta: FloatArray, config: FitConfig,
-                   keyframes: NDArray[np.int_] | None = None) -> ImageEvidence:
+                   keyframes: NDArray[np.int_] | None = None,
+                   corr: Correspondences | None = None) -> ImageEvidence:
     """Search correspondences of every model point and line sample at the estimate
-    ``(world_T_cam, theta)`` of ``keyframes`` (default: all) and count them."""
+    ``(world_T_cam, theta)`` of ``keyframes`` (default: all) and count them. ``corr``:
+    the correspondences a fit with point and line correspondences and visible-part
+    sampling (``config``) already found there (the search is then skipped)."""
+    reuse = (corr is not None and config.points == "corr" and config.lines == "corr"
+             and config.line_sampling == "visible")
     cfg = dataclasses.replace(config, points="corr", lines="corr", line_sampling="visible")
     prob = FitProblem(data, cfg, keyframes)
     kf = prob.keyframes
-    corr = prob.find_correspondences(world_T_cam, theta)
+    if not reuse or corr is None:
+        corr = prob.find_correspondences(world_T_cam, theta)
     pts, lns = prob.model(theta, False, corr.line_fractions)
     cam = data.camera
     width = cam.width
