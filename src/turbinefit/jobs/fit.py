@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
@@ -187,7 +189,10 @@ def fit_folder(
 
     t1 = time.perf_counter()
     try:
-        result = fit(flight, cfg, callback=progress)
+        # absurd inputs overflow inside the solver: the verdict reports it (non-finite
+        # numbers, no step), not numpy's warnings
+        with np.errstate(over="ignore", invalid="ignore"):
+            result = fit(flight, cfg, callback=progress)
     except NonFiniteHeatmapError as exc:
         raise InputError("heat-map contains NaN or inf", source.where(exc.keyframe)) from None
     timings["solve"] = time.perf_counter() - t1
@@ -197,10 +202,11 @@ def fit_folder(
                          result, flight.turbine, timings=timings,
                          defaults=None if config is not None else source.defaults_name)
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
-        summary.before = accuracy(flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
-                                  flight.gt_turbine, cfg.geometry)
-        summary.after = accuracy(result.world_T_cam, result.turbine, flight.gt_world_T_cam,
-                                 flight.gt_turbine, cfg.geometry)
+        with np.errstate(over="ignore", invalid="ignore"):  # errors of absurd inputs: inf
+            summary.before = accuracy(flight.world_T_cam, flight.turbine,
+                                      flight.gt_world_T_cam, flight.gt_turbine, cfg.geometry)
+            summary.after = accuracy(result.world_T_cam, result.turbine,
+                                     flight.gt_world_T_cam, flight.gt_turbine, cfg.geometry)
     t2 = time.perf_counter()
     with FIT_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)

@@ -154,7 +154,8 @@ def levenberg_marquardt(
                 pred += 0.5 * (mu * float(np.sum(dt * dt * _diag_scale(lin.E)))
                                - float(dt @ lin.g_t))
         step_norm = float(np.sqrt(np.sum(dp * dp) + (0.0 if dt is None else dt @ dt)))
-        x_norm = float(np.linalg.norm(theta) + np.linalg.norm(poses.translation))
+        with np.errstate(over="ignore"):  # inf for absurd inputs: no step is then small
+            x_norm = float(np.linalg.norm(theta) + np.linalg.norm(poses.translation))
         if step_norm <= cfg.parameter_tolerance * (x_norm + cfg.parameter_tolerance):
             termination = "parameter_tolerance"
             break

@@ -354,7 +354,7 @@ def judge(s: Signals) -> tuple[Verdict, list[str]]:
         for i, name in enumerate(TurbineParams.NAMES):
             lo, hi = THETA_LOWER[i], THETA_UPPER[i]
             if v[i] <= lo + BOUND_TOLERANCE_M or v[i] >= hi - BOUND_TOLERANCE_M:
-                fails.append(f"{name} {v[i]:.2f} m on or beyond its bound [{lo:g}, {hi:g}] m")
+                fails.append(f"{name} {v[i]:.6g} m on or beyond its bound [{lo:g}, {hi:g}] m")
         if s.theta.tower_height - s.theta.blade_length <= 0:
             fails.append(f"blade ({s.theta.blade_length:.2f} m) longer than the tower "
                          f"({s.theta.tower_height:.2f} m): its tips hit the ground")
