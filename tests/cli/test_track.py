@@ -26,6 +26,7 @@ from support import (
 from turbinefit.cli import main
 from turbinefit.io import read_turbine_yaml
 from turbinefit.io.images import write_png
+from turbinefit.io.turbine_yaml import read_turbine_std
 from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
 from turbinefit.solver.config import FitConfig
 
@@ -74,6 +75,11 @@ def test_track_writes_causal_and_final_estimates(sim_flight_dir: Path, tmp_path:
     th = read_turbine_yaml(out_dir / "turbine.yaml")
     assert th.to_dict() == pytest.approx(summary["turbine"]["final"], rel=1e-12)
     assert f"tracked {N_KEYFRAMES} keyframes" in out and "99th percentile" in out
+    # the verdict, its signals and theta's standard deviations (also in turbine.yaml)
+    assert summary["verdict"] in ("ok", "doubtful") and f"verdict: {summary['verdict']}" in out
+    assert summary["signals"]["evidence_share"] > 0.9
+    std = read_turbine_std(out_dir / "turbine.yaml")
+    assert std is not None and std == pytest.approx(summary["turbine"]["final_sigma"])
     assert out.rstrip().endswith(f"wrote {out_dir}")
     # the status line goes to stderr only when it is a terminal: nothing here
     assert "Traceback" not in err

@@ -73,3 +73,32 @@ def test_write_turbine_rejects_out_of_range(tmp_path: Path) -> None:
     with raises_input_error(path, field="blade_length"):
         write_turbine_yaml(path, TurbineParams(0, 0, 80, 0, 4, 0, -40))
     assert not path.exists()
+
+
+def test_turbine_std_round_trip(tmp_path: Path) -> None:
+    """A fitted file carries a std block; reading tolerates and checks it."""
+    from turbinefit.io.turbine_yaml import read_turbine_std
+
+    params = TurbineParams(1.5, -2.0, 87.6, 0.6, 5.0, 0.3, 63.0)
+    std = {n: 0.1 * (i + 1) for i, n in enumerate(TurbineParams.NAMES)}
+    std["heading"] = None
+    path = tmp_path / "turbine.yaml"
+    write_turbine_yaml(path, params, comment="fitted", std=std)
+    assert read_turbine_yaml(path) == params
+    assert read_turbine_std(path) == std
+    write_turbine_yaml(path, params)
+    assert read_turbine_std(path) is None
+
+
+@pytest.mark.parametrize(("block", "field", "message"), [
+    ("std: 3\n", "std", "mapping"),
+    ("std:\n  rotor: 1.0\n", "std.rotor", "unknown key"),
+    ("std:\n  tower_height: -1.0\n", "std.tower_height", ">= 0"),
+    ("std:\n  tower_height: .inf\n", "std.tower_height", "finite"),
+])
+def test_turbine_std_bad(tmp_path: Path, block: str, field: str, message: str) -> None:
+    path = tmp_path / "turbine.yaml"
+    path.write_text(TURBINE_TEXT + block)
+    with raises_input_error(path, field=field) as exc:
+        read_turbine_yaml(path)
+    assert message in str(exc.value)

@@ -59,3 +59,27 @@ def test_arrow_covariance_equals_the_dense_inverse() -> None:
                                    rtol=1e-8, atol=1e-12)
         assert cov_t is not None
         np.testing.assert_allclose(cov_t, inv[6 * n:, 6 * n:], rtol=1e-8, atol=1e-12)
+
+
+def test_bounded_step_is_the_constrained_minimiser() -> None:
+    """Free entries have zero gradient; entries held on a bound have a gradient pushing
+    them outward; without bounds it is the plain solve."""
+    from turbinefit.solver.linalg import bounded_step
+
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(7, 7))
+    S = A @ A.T + 7 * np.eye(7)
+    rhs = rng.normal(size=7) * 5
+    np.testing.assert_allclose(bounded_step(S, rhs), np.linalg.solve(S, rhs))
+    lower, upper = np.full(7, -np.inf), np.full(7, np.inf)
+    x0 = np.linalg.solve(S, rhs)
+    upper[np.argmax(x0)] = 0.5 * x0.max()
+    lower[np.argmin(x0)] = 0.5 * x0.min()
+    x = bounded_step(S, rhs, (lower, upper))
+    assert np.all(x >= lower) and np.all(x <= upper)
+    grad = S @ x - rhs  # of 1/2 x^T S x - rhs^T x
+    at_up, at_lo = x >= upper, x <= lower
+    free = ~(at_up | at_lo)
+    assert at_up.any() and at_lo.any()
+    np.testing.assert_allclose(grad[free], 0.0, atol=1e-9)
+    assert np.all(grad[at_up] <= 1e-12) and np.all(grad[at_lo] >= -1e-12)

@@ -4,7 +4,8 @@
 Each command module has ``add_parser(subparsers, help)`` and ``run(args) -> int``, and
 imports what it runs only inside ``run``: ``turbinefit --help`` builds every command as a
 stub and loads no command module; ``turbinefit COMMAND ...`` builds and loads that one.
-Every command prints one clear line and exits with status 2 on bad input (no traceback).
+Every command prints one clear line and exits with status 2 on bad input (no traceback);
+``fit`` and ``track`` exit with status 3 when their verdict is ``failed`` (outputs written).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from collections.abc import Collection, Sequence
 from types import ModuleType
 
 EXIT_BAD_INPUT = 2
+#: ``fit`` or ``track`` ran and wrote its outputs, but its verdict is ``failed``.
+EXIT_FIT_FAILED = 3
 EXIT_INTERRUPTED = 130
 
 #: Every command: name -> one line of help (the module is ``turbinefit.cli.<name>``).

@@ -88,6 +88,16 @@ def turbine_line(th: Any) -> str:
             f"{th.blade_length:.2f} m")
 
 
+def verdict_line(verdict: str, std: Any) -> str:
+    """The verdict and theta's standard deviations (``std``: (7,) or None), in one line."""
+    if std is None:
+        return f"verdict: {verdict}"
+    sd = [float(x) for x in std]
+    return (f"verdict: {verdict}; standard deviations: base ({sd[0]:.2f}, {sd[1]:.2f}) m, "
+            f"tower {sd[2]:.2f} m, heading {degrees(sd[3]):.2f} deg, nacelle {sd[4]:.2f} m, "
+            f"blade rotation {degrees(sd[5]):.2f} deg, blades {sd[6]:.2f} m")
+
+
 # ---- photo detection ---------------------------------------------------------------------
 
 def _tip_shift(text: str) -> float:
@@ -274,3 +284,27 @@ def pair_frame_report(base: FitConfig | None, options: dict[str, Any], used: Fit
 
     requested = options.get("pair_frame", "auto" if base is None else base.pair_frame)
     return pair_frame_line(dataclasses.replace(used, pair_frame=requested), used)
+
+
+#: The exit statuses of ``fit`` and ``track``, for their ``--help``.
+VERDICT_EPILOG = """\
+Every result is judged (summary.json: verdict, reasons, signals; docs/method.md):
+ok, doubtful (a warning line, exit status 0) or failed (a warning line, exit
+status 3; the outputs are still written, for inspection).
+
+Exit status: 0 done (verdict ok or doubtful), 2 bad input (nothing written),
+3 verdict failed (outputs written), 130 interrupted."""
+
+
+def verdict_status(command: str, verdict: str, reasons: list[str], out_dir: Path) -> int:
+    """Print the warning line of a ``doubtful`` or ``failed`` verdict (to stderr, also
+    with --quiet) and return the exit status: 3 for ``failed``, else 0."""
+    import sys
+
+    from turbinefit.cli import EXIT_FIT_FAILED
+
+    if verdict == "ok":
+        return 0
+    print(f"turbinefit: warning: {command} {verdict}: {'; '.join(reasons)} (outputs in "
+          f"{out_dir})", file=sys.stderr)
+    return EXIT_FIT_FAILED if verdict == "failed" else 0

@@ -9,12 +9,15 @@ from pathlib import Path
 from typing import Any
 
 from turbinefit.cli.common import (
+    VERDICT_EPILOG,
     add_flight_job_options,
     add_photo_options,
     detect_options,
     fit_base_and_options,
     pair_frame_report,
     turbine_line,
+    verdict_line,
+    verdict_status,
 )
 
 DESCRIPTION = """\
@@ -37,7 +40,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     f: argparse.ArgumentParser = sub.add_parser(
         "fit", help=help, description=DESCRIPTION,
         usage="%(prog)s FLIGHT_DIR --out OUT_DIR [--config FILE | --preset NAME] [options]",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=VERDICT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
     add_flight_job_options(f, PRESETS)
     add_photo_options(f, "detect the heat-maps from images/")
@@ -85,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
         print(pair_frame_report(base, options, r.config))
         print(turbine_line(r.turbine))
+        print(verdict_line(r.verdict, r.theta_std))
         if report.before is not None and report.after is not None:
             b, a = report.before, report.after
             print(f"position error     {b.position_error_m:8.3f} m   -> "
@@ -94,4 +98,4 @@ def run(args: argparse.Namespace) -> int:
             print(f"model point error  {b.model_point_error_m:8.3f} m   -> "
                   f"{a.model_point_error_m:8.3f} m")
         print(f"wrote {report.out_dir}")
-    return 0
+    return verdict_status("fit", report.result.verdict, report.result.reasons, report.out_dir)

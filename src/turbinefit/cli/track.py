@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from turbinefit.cli.common import (
+    VERDICT_EPILOG,
     add_flight_job_options,
     add_photo_options,
     degrees,
@@ -17,6 +18,8 @@ from turbinefit.cli.common import (
     pair_frame_report,
     positive_int,
     turbine_line,
+    verdict_line,
+    verdict_status,
     whole_nonneg,
 )
 
@@ -41,7 +44,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
         "track", help=help, description=DESCRIPTION,
         usage="%(prog)s FLIGHT_DIR --out OUT_DIR [--window K] [--config FILE | --preset NAME] "
         "[options]",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=VERDICT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     k.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to replay")
     k.add_argument("--window", type=whole_nonneg, default=tdf.window, metavar="K",
                    help=f"keyframes in the sliding window, >= 2; 0 keeps them all (the batch "
@@ -125,6 +128,7 @@ def run(args: argparse.Namespace) -> int:
                   f"{lat.max_ms:.1f} ms, trend {lat.slope_ms_per_1000_keyframes:+.2f} ms per "
                   "1000 keyframes")
         print(turbine_line(report.turbine))
+        print(verdict_line(s.verdict, None if s.signals is None else s.signals.theta_std))
         if s.defaults is not None:
             print(f"options: the defaults for {s.defaults}")
         print(pair_frame_report(base, options, s.config.fit))
@@ -134,4 +138,5 @@ def run(args: argparse.Namespace) -> int:
                       f"{a.orientation_error_deg:6.3f} deg, model points "
                       f"{a.model_point_error_m:6.3f} m")
         print(f"wrote {report.out_dir}")
-    return 0
+    return verdict_status("track", report.summary.verdict, report.summary.reasons,
+                          report.out_dir)

@@ -17,6 +17,16 @@ A georeferenced fit (:mod:`turbinefit.io.georef`) adds ``latitude`` and ``longit
 World frame: metres, right-handed, z up (see :mod:`turbinefit.turbine.model`). Angles are
 radians and are not wrapped on reading or writing.
 
+A fitted file (``fit``, ``track``) adds the standard deviation of each parameter, a
+mapping under ``std`` (same keys and units; ``null`` where unknown)::
+
+    std:
+      base_x: 0.12
+      ...
+
+:func:`read_turbine_yaml` accepts and checks it (numbers >= 0 or null, known keys) and
+returns the parameters only; :func:`read_turbine_std` returns it.
+
 Reading raises :class:`~turbinefit.errors.InputError` naming the file and key for a missing
 key, an unknown key, a duplicate key, a non-numeric or non-finite value, or a value out of
 range (``tower_height > 0``, ``blade_length > 0``, ``nacelle_length >= 0``) or absurd
@@ -28,6 +38,10 @@ and uses ``repr`` precision, so a round trip is exact.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
 
 from turbinefit.errors import InputError, plain_number
 from turbinefit.io.atomic import StrPath, write_text_atomic
@@ -62,6 +76,37 @@ def _check_magnitudes(values: dict[str, float], path: StrPath) -> None:
                              f"plausible {limit:g} {_UNITS[key]}", path=path, field=key)
 
 
+#: The optional key of the standard deviations.
+STD_KEY = "std"
+
+
+def _parse_std(value: Any, path: StrPath) -> dict[str, float | None]:
+    if not isinstance(value, dict):
+        raise InputError("must be a mapping of parameter names to standard deviations",
+                         path=path, field=STD_KEY)
+    out: dict[str, float | None] = {}
+    for key, v in value.items():
+        where = f"{STD_KEY}.{key}"
+        if key not in TurbineParams.NAMES:
+            raise InputError(f"unknown key (expected: {', '.join(TurbineParams.NAMES)})",
+                             path=path, field=where)
+        if v is None:
+            out[key] = None
+            continue
+        x = parse_number(v, path, where)
+        if x < 0:
+            raise InputError(f"must be >= 0, got {x:g}", path=path, field=where)
+        out[key] = x
+    return out
+
+
+def read_turbine_std(path: StrPath) -> dict[str, float | None] | None:
+    """The ``std`` block of a turbine file (None if it has none); checked as
+    :func:`read_turbine_yaml` checks it."""
+    data = load_yaml_mapping(path)
+    return None if STD_KEY not in data else _parse_std(data[STD_KEY], path)
+
+
 def read_turbine_yaml(path: StrPath) -> TurbineParams:
     """Read turbine parameters (metres, radians) from a YAML file (see module docstring).
 
@@ -72,9 +117,11 @@ def read_turbine_yaml(path: StrPath) -> TurbineParams:
     for key in data:
         if key in LOCATION_KEYS:
             parse_number(data[key], path, key)
-        elif key not in TurbineParams.NAMES:
+        elif key not in TurbineParams.NAMES and key != STD_KEY:
             raise InputError(f"unknown key (expected: {', '.join(TurbineParams.NAMES)})",
                              path=path, field=key)
+    if STD_KEY in data:
+        _parse_std(data[STD_KEY], path)
     values: dict[str, float] = {}
     for key in TurbineParams.NAMES:
         if key not in data:
@@ -86,7 +133,8 @@ def read_turbine_yaml(path: StrPath) -> TurbineParams:
 
 
 def format_turbine_yaml(params: TurbineParams, comment: str | None = None,
-                        path: StrPath | None = None) -> str:
+                        path: StrPath | None = None,
+                        std: Mapping[str, float | None] | None = None) -> str:
     """The text :func:`write_turbine_yaml` writes (``path`` only names errors)."""
     values = params.to_dict()
     _check_ranges(values, path)
@@ -94,18 +142,27 @@ def format_turbine_yaml(params: TurbineParams, comment: str | None = None,
     width = max(len(k) for k in TurbineParams.NAMES) + 2
     for key in TurbineParams.NAMES:
         lines.append(f"{key + ':':<{width}}{yaml_float(values[key])}  # {_UNITS[key]}")
+    if std is not None:
+        lines.append(f"{STD_KEY}:  # standard deviations (same units)")
+        for key in TurbineParams.NAMES:
+            v = std.get(key)
+            text = "null" if v is None or not math.isfinite(v) else yaml_float(float(v))
+            lines.append(f"  {key + ':':<{width}}{text}")
     return "\n".join(lines) + "\n"
 
 
-def write_turbine_yaml(path: StrPath, params: TurbineParams, comment: str | None = None) -> None:
+def write_turbine_yaml(path: StrPath, params: TurbineParams, comment: str | None = None,
+                       std: Mapping[str, float | None] | None = None) -> None:
     """Write turbine parameters as YAML, atomically.
 
     Args:
         path: destination file (replaced if it exists).
         params: the parameters (metres, radians), written with ``repr`` precision.
         comment: optional text written as ``#`` lines at the top.
+        std: optional standard deviation of each parameter (a ``std`` block; missing or
+            non-finite values are written as ``null``).
 
     Raises:
         InputError: naming ``path`` and the key, for a value out of range.
     """
-    write_text_atomic(path, format_turbine_yaml(params, comment, path))
+    write_text_atomic(path, format_turbine_yaml(params, comment, path, std))

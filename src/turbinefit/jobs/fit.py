@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
@@ -93,7 +95,11 @@ class FitSummary:
                 ],
             },
             "turbine": {"initial": self.initial_turbine.to_dict(),
-                        "optimised": r.turbine.to_dict()},
+                        "optimised": r.turbine.to_dict(),
+                        "std": None if r.signals is None else r.signals.theta_std_dict()},
+            "verdict": r.verdict,
+            "reasons": list(r.reasons),
+            "signals": None if r.signals is None else r.signals.to_dict(),
             "timing_s": {k: round(v, 4) for k, v in self.timings.items()},
         }
         if self.before is not None and self.after is not None:
@@ -150,9 +156,11 @@ def fit_folder(
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
     Writes ``keyframes.txt`` (optimised ``world_T_cam``, TUM), ``turbine.yaml`` (fitted
-    theta), ``summary.json`` (:class:`FitSummary`), ``config.yaml`` (the resolved options)
+    theta and its standard deviations), ``summary.json`` (:class:`FitSummary`, with the
+    verdict, its reasons and signals), ``config.yaml`` (the resolved options)
     and, unless ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with
-    ground truth) and ``cost.png``.
+    ground truth) and ``cost.png``. The outputs are written whatever the verdict
+    (``report.result.verdict``): a failed fit is kept for inspection.
 
     ``out_dir`` is checked before anything is read (:mod:`turbinefit.jobs.outputs`): not
     ``flight_dir`` or ``config_path`` (the file ``config`` was read from), nor inside or
@@ -183,7 +191,10 @@ def fit_folder(
 
     t1 = time.perf_counter()
     try:
-        result = fit(flight, cfg, callback=progress)
+        # absurd inputs overflow inside the solver: the verdict reports it (non-finite
+        # numbers, no step), not numpy's warnings
+        with np.errstate(over="ignore", invalid="ignore"):
+            result = fit(flight, cfg, callback=progress)
     except NonFiniteHeatmapError as exc:
         raise InputError("heat-map contains NaN or inf", source.where(exc.keyframe)) from None
     timings["solve"] = time.perf_counter() - t1
@@ -193,14 +204,17 @@ def fit_folder(
                          result, flight.turbine, timings=timings,
                          defaults=None if config is not None else source.defaults_name)
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
-        summary.before = accuracy(flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
-                                  flight.gt_turbine, cfg.geometry)
-        summary.after = accuracy(result.world_T_cam, result.turbine, flight.gt_world_T_cam,
-                                 flight.gt_turbine, cfg.geometry)
+        with np.errstate(over="ignore", invalid="ignore"):  # errors of absurd inputs: inf
+            summary.before = accuracy(flight.world_T_cam, flight.turbine,
+                                      flight.gt_world_T_cam, flight.gt_turbine, cfg.geometry)
+            summary.after = accuracy(result.world_T_cam, result.turbine,
+                                     flight.gt_world_T_cam, flight.gt_turbine, cfg.geometry)
     t2 = time.perf_counter()
     with FIT_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
-        write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT)
+        write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT,
+                           std=None if result.signals is None
+                           else result.signals.theta_std_dict())
         write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam, result.turbine)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:

@@ -12,12 +12,13 @@ destination is checked:
   ``--overwrite`` on a wrong path.
 
 The summaries the jobs write (``summary.json``) are dataclasses with a ``to_dict``;
-:func:`summary_json` is their one serialiser.
+:func:`summary_json` is their one serialiser (strict JSON: undefined numbers are null).
 """
 
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -100,9 +101,22 @@ class Summary(Protocol):
     def to_dict(self) -> dict[str, Any]: ...
 
 
+def finite_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float (NaN, infinity) replaced by None (JSON null),
+    recursively through dicts, lists and tuples."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
 def summary_json(summary: Summary) -> str:
-    """The text of ``summary.json``."""
-    return json.dumps(summary.to_dict(), indent=2) + "\n"
+    """The text of ``summary.json``: strict JSON (no NaN or Infinity: undefined values are
+    null)."""
+    return json.dumps(finite_json(summary.to_dict()), indent=2, allow_nan=False) + "\n"
 
 
 FIT_OUTPUTS = OutputKind("fit", frozenset({

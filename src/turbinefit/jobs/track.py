@@ -22,7 +22,9 @@ import numpy as np
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
+from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
 from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
@@ -33,6 +35,7 @@ from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
 from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
 from turbinefit.jobs.sources import PhotoHeatmaps, fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
+from turbinefit.solver.verdict import ImageEvidence, Signals, image_evidence, judge, measure
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams
 
 if TYPE_CHECKING:
@@ -100,6 +103,9 @@ class TrackSummary:
         initial, causal, final, final_without_back_substitution: accuracy of the initial
             poses, of each keyframe's estimate on arrival, of the final estimates and of
             those without moving marginalised keyframes (None without ground truth).
+        verdict, reasons, signals: how far to trust the result
+            (:mod:`turbinefit.solver.verdict`; the image signals are measured at each
+            keyframe's estimate on arrival, the rest at the end).
     """
 
     flight: str
@@ -118,6 +124,9 @@ class TrackSummary:
     final: Accuracy | None = None
     final_without_back_substitution: Accuracy | None = None
     defaults: str | None = None
+    verdict: str = "ok"
+    reasons: list[str] = dataclasses.field(default_factory=list)
+    signals: Signals | None = None
 
     def to_dict(self) -> dict[str, Any]:
         turbine: dict[str, Any] = {"initial": self.initial_turbine.to_dict(),
@@ -135,6 +144,9 @@ class TrackSummary:
             "iterations_mean": self.iterations_mean,
             "theta_prior_active_at_end": self.theta_prior_active_at_end,
             "turbine": turbine,
+            "verdict": self.verdict,
+            "reasons": list(self.reasons),
+            "signals": None if self.signals is None else self.signals.to_dict(),
         }
         if self.defaults is not None:
             out["defaults"] = self.defaults
@@ -233,6 +245,7 @@ def track_folder(
     poses = folder.keyframes.poses
     odometry = folder.odometry  # its steps are the pairwise measurements, if present
     latency = np.empty(n)
+    image: list[ImageEvidence] = []
     for k in range(n):
         t0 = time.perf_counter()
         maps = source.keyframe(k)
@@ -242,6 +255,9 @@ def track_folder(
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3
+        one = Flight(source.camera, folder.timestamps[k:k + 1], SE3(est.world_T_cam.wxyz_xyz[None]),
+                     HeatmapStack([maps]), est.turbine)
+        image.append(image_evidence(one, one.world_T_cam, tracker.theta, tracker.config.fit))
         if progress is not None:
             progress(est, n)
     cfg = tracker.config  # pair_frame="auto" resolved by the first keyframe
@@ -261,6 +277,12 @@ def track_folder(
         summary.final_sigma = dict(zip(TurbineParams.NAMES,
                                        np.sqrt(np.diag(last.theta_covariance)).tolist(),
                                        strict=True))
+    signals = measure(ImageEvidence.concat(image), poses, final_poses,
+                      poses if odometry is None else odometry,
+                      tracker.theta if cfg.fit.mode == "joint" else None, last.theta_covariance,
+                      cfg.fit, sum(e.iterations for e in tracker.estimates), (last.cost,))
+    summary.signals = signals
+    summary.verdict, summary.reasons = judge(signals)
     geometry = cfg.fit.geometry
     gt_poses, gt_turbine = folder.gt_world_T_cam, folder.gt_turbine
     if gt_poses is not None and gt_turbine is not None:
@@ -274,7 +296,8 @@ def track_folder(
         write_tum(tmp / "causal.txt", folder.timestamps, causal_poses,
                   comment="turbinefit track: each keyframe's estimate when it arrived")
         write_tum(tmp / "keyframes.txt", folder.timestamps, final_poses)
-        write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT)
+        write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT,
+                           std=summary.final_sigma)
         write_georef_outputs(tmp, georef, folder.timestamps, final_poses, turbine)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))

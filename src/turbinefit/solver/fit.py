@@ -15,6 +15,10 @@ correspondences (and visible-part line samples), then a new search; a stage ends
 search changes almost nothing. The heat-map term's
 basin is a few pixels wide, so without the warm-up (``warmup=False``) initial errors of a
 few degrees in heading or blade rotation leave it stranded (see the tests).
+
+At the end, theta's covariance is taken from the normal equations at the estimate (with
+the final correspondences), and the result is judged (:mod:`turbinefit.solver.verdict`):
+``ok``, ``doubtful`` or ``failed``, with reasons and the signals they come from.
 """
 
 from __future__ import annotations
@@ -31,9 +35,20 @@ from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig, resolve_pair_frame
 from turbinefit.solver.lm import IterationRecord
-from turbinefit.solver.problem import FitProblem
+from turbinefit.solver.problem import Correspondences, FitProblem
 from turbinefit.solver.rounds import initial_correspondences, run_rounds
+from turbinefit.solver.verdict import (
+    ImageEvidence,
+    Signals,
+    Verdict,
+    image_evidence,
+    judge,
+    measure,
+    theta_covariance,
+)
 from turbinefit.turbine.model import TurbineParams
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass
@@ -52,6 +67,10 @@ class FitResult:
         time_s: wall time of the solve [s].
         num_residuals: scalar residuals in the final problem.
         config: the configuration used (``pair_frame`` resolved: never ``auto``).
+        theta_covariance: (7, 7) covariance of theta (metres, radians) from the final
+            normal equations; None with the turbine fixed or singular information.
+        signals, verdict, reasons: how far to trust the result
+            (:mod:`turbinefit.solver.verdict`).
     """
 
     world_T_cam: SE3
@@ -67,6 +86,15 @@ class FitResult:
     num_residuals: int
     config: FitConfig
     history: list[IterationRecord] = field(default_factory=list)
+    theta_covariance: FloatArray | None = None
+    signals: Signals | None = None
+    verdict: Verdict = "ok"
+    reasons: list[str] = field(default_factory=list)
+
+    @property
+    def theta_std(self) -> FloatArray | None:
+        """(7,) theta's standard deviations (metres, radians), or None."""
+        return None if self.signals is None else self.signals.theta_std
 
 
 @dataclass
@@ -144,6 +172,7 @@ def fit(
     corr0 = initial_correspondences(problem, poses, theta)
     start = problem.linearize(poses, theta, corr0, with_jacobian=False)
     lin = start
+    corr = corr0
     for stage in stages:
         final_stage = stage is stages[-1]
         out = run_rounds(stage.problem, poses, theta, stage.rounds, stage.iterations,
@@ -154,10 +183,38 @@ def fit(
         iterations += out.iterations
         termination = out.termination
         rounds += out.rounds
-    turbine = TurbineParams.from_vector(theta).canonical()
+        corr = out.correspondences
+    initial = initial_poses if initial_poses is not None else flight.world_T_cam[kf]
+    cov, signals = _assess(problem, initial, poses, theta, corr, iterations,
+                           (start.cost, lin.cost))
+    verdict, reasons = judge(signals)
+    finite = bool(np.all(np.isfinite(theta)))
+    turbine = (TurbineParams.from_vector(theta).canonical() if finite
+               else TurbineParams.from_vector(np.nan_to_num(theta)))
     return FitResult(
         world_T_cam=poses, turbine=turbine, initial_cost=start.cost, final_cost=lin.cost,
         initial_terms=dict(start.terms), final_terms=dict(lin.terms), iterations=iterations,
         rounds=rounds, termination=termination, time_s=time.perf_counter() - t0,
         num_residuals=lin.num_residuals, config=cfg, history=history,
+        theta_covariance=cov, signals=signals, verdict=verdict, reasons=reasons,
     )
+
+
+def _assess(problem: FitProblem, initial: SE3, poses: SE3, theta: FloatArray,
+            corr: Correspondences, iterations: int, costs: tuple[float, ...]
+            ) -> tuple[FloatArray | None, Signals]:
+    """theta's covariance and the signals of the estimate ``(poses, theta)``."""
+    kf = problem.keyframes
+    finite = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(poses.wxyz_xyz)))
+    cov = None
+    if finite and problem.optimise_theta:
+        cov = theta_covariance(problem.linearize(poses, theta, corr))
+    if finite:
+        image = image_evidence(problem.data, poses, theta, problem.config, kf, corr)
+    else:
+        none = np.zeros(kf.size, dtype=np.int64)
+        image = ImageEvidence(np.zeros(kf.size, dtype=bool), none, none, none, np.zeros(0),
+                              problem.data.camera.width)
+    return cov, measure(image, initial, poses, problem.data.measurement_poses()[kf],
+                        theta if problem.optimise_theta else None, cov, problem.config,
+                        iterations, costs)

@@ -77,9 +77,38 @@ def solve_block_tridiagonal(D: FloatArray, B: FloatArray, b: FloatArray) -> Floa
     return x
 
 
+def bounded_step(S: FloatArray, rhs: FloatArray,
+                 bounds: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
+    """Minimise ``1/2 x^T S x - rhs^T x`` (S symmetric positive definite, small) subject to
+    ``lower <= x <= upper`` (``bounds``; None: unbounded, ``x = S^-1 rhs``).
+
+    Active set: an entry that leaves its bounds is held on the bound it crossed and the
+    others are solved again, until none leaves (at most once per entry). The result is the
+    exact minimiser over the entries left free, feasible by construction; entries are not
+    released again, which is enough for the few bounds of theta (a step that starts inside
+    and is pushed onto a bound)."""
+    x = np.asarray(np.linalg.solve(S, rhs), dtype=np.float64)
+    if bounds is None:
+        return x
+    lower, upper = bounds
+    held = np.zeros(x.size, dtype=bool)
+    for _ in range(x.size):
+        out = ~held & ((x < lower) | (x > upper))
+        if not out.any():
+            break
+        held |= out
+        x = np.where(held, np.clip(x, lower, upper), x)
+        free = ~held
+        if free.any():
+            x[free] = np.linalg.solve(S[np.ix_(free, free)],
+                                      rhs[free] - S[np.ix_(free, held)] @ x[held])
+    return np.clip(x, lower, upper)
+
+
 def solve_arrow(
     D: FloatArray, B: FloatArray, C: FloatArray | None, E: FloatArray | None,
     g_p: FloatArray, g_t: FloatArray | None,
+    theta_bounds: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Solve ``[[A, C], [C^T, E]] [dp; dt] = -[g_p; g_t]``.
 
@@ -89,6 +118,9 @@ def solve_arrow(
         C: (N, 6, 7) coupling blocks, or None (turbine fixed).
         E: (7, 7) turbine block, or None.
         g_p: (N, 6), g_t: (7,) or None: gradient.
+        theta_bounds: (lower, upper) (7,) each: bounds on ``dt``. The step then minimises
+            the quadratic model with ``dt`` inside them (:func:`bounded_step` on the
+            Schur complement; the poses follow ``dt`` exactly).
 
     Returns:
         dp (N, 6), dt (7,) or None. Raises ``numpy.linalg.LinAlgError`` if singular.
@@ -101,7 +133,7 @@ def solve_arrow(
     Xg, XC = X[..., 0], X[..., 1:]
     S = E - np.einsum("nai,naj->ij", C, XC)
     rhs_t = -(g_t - np.einsum("nai,na->i", C, Xg))
-    dt = np.linalg.solve(0.5 * (S + S.T), rhs_t)
+    dt = bounded_step(0.5 * (S + S.T), rhs_t, theta_bounds)
     dp = -Xg - XC @ dt
     if not (np.all(np.isfinite(dp)) and np.all(np.isfinite(dt))):
         raise np.linalg.LinAlgError("non-finite step")

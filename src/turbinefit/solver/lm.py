@@ -13,6 +13,12 @@ stops when the cost fell by less than ``function_tolerance`` (relative) over the
 The trust-region strategy follows Ceres: damping ``mu * clip(diag(J^T J), 1e-6, 1e32)``,
 step accepted when the gain ratio exceeds 1e-3, ``mu`` scaled by
 ``max(1/3, 1 - (2 rho - 1)^3)`` on success and by a doubling factor on failure.
+
+Bounds: theta stays inside :data:`~turbinefit.turbine.model.THETA_LOWER` /
+``THETA_UPPER`` (widened to include a start outside them): a step that would leave them
+is the minimiser of the damped model with the offending entries held on their bounds
+(:func:`~turbinefit.solver.linalg.bounded_step`), and its predicted decrease is then that
+of the undamped model for the step taken.
 """
 
 from __future__ import annotations
@@ -25,8 +31,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.geometry.se3 import SE3
-from turbinefit.solver.linalg import solve_arrow
+from turbinefit.solver.linalg import bounded_step, solve_arrow
 from turbinefit.solver.problem import Correspondences, FitProblem, Linearization
+from turbinefit.turbine.model import THETA_LOWER, THETA_UPPER
 
 FloatArray = NDArray[np.float64]
 
@@ -68,6 +75,26 @@ def _diag_scale(M: FloatArray) -> FloatArray:
     return np.clip(M[..., idx, idx], 1e-6, 1e32)
 
 
+def theta_step_bounds(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Bounds (lower, upper) on a step of ``theta`` that keep it inside the plausible
+    ranges (widened to include ``theta`` itself)."""
+    return (np.minimum(THETA_LOWER, theta) - theta, np.maximum(THETA_UPPER, theta) - theta)
+
+
+def _model_decrease(lin: Linearization, dp: FloatArray, dt: FloatArray | None) -> float:
+    """``-(g^T d + 1/2 d^T M d)``: the decrease the undamped Gauss-Newton model predicts
+    for any step ``d = (dp, dt)``."""
+    assert lin.D is not None and lin.B is not None and lin.g_p is not None
+    quad = float(np.einsum("na,nab,nb->", dp, lin.D, dp))
+    if dp.shape[0] > 1:
+        quad += 2.0 * float(np.einsum("na,nab,nb->", dp[1:], lin.B, dp[:-1]))
+    lin_term = float(np.sum(lin.g_p * dp))
+    if dt is not None and lin.E is not None and lin.C is not None and lin.g_t is not None:
+        quad += 2.0 * float(np.einsum("na,nai,i->", dp, lin.C, dt)) + float(dt @ lin.E @ dt)
+        lin_term += float(lin.g_t @ dt)
+    return -lin_term - 0.5 * quad
+
+
 def levenberg_marquardt(
     problem: FitProblem,
     poses: SE3,
@@ -103,27 +130,32 @@ def levenberg_marquardt(
         if g_inf < cfg.gradient_tolerance:
             termination = "gradient_tolerance"
             break
+        bounds = theta_step_bounds(theta)
         try:
             if optimise_poses:
                 dp, dt = solve_arrow(
                     _damp(lin.D, mu), lin.B, lin.C,
-                    None if lin.E is None else _damp(lin.E, mu), lin.g_p, lin.g_t)
+                    None if lin.E is None else _damp(lin.E, mu), lin.g_p, lin.g_t, bounds)
             else:
                 assert lin.E is not None and lin.g_t is not None
                 dp = np.zeros_like(lin.g_p)
-                dt = np.asarray(np.linalg.solve(_damp(lin.E, mu), -lin.g_t), dtype=np.float64)
+                dt = bounded_step(_damp(lin.E, mu), -lin.g_t, bounds)
         except np.linalg.LinAlgError:
             mu *= nu
             nu *= 2.0
             continue
-        # predicted decrease of the Gauss-Newton model: 1/2 (mu d^T diag d - g^T d)
-        scale_p = _diag_scale(lin.D)
-        pred = 0.5 * (mu * float(np.sum(dp * dp * scale_p)) - float(np.sum(dp * lin.g_p)))
-        if dt is not None and lin.g_t is not None and lin.E is not None:
-            pred += 0.5 * (mu * float(np.sum(dt * dt * _diag_scale(lin.E)))
-                           - float(dt @ lin.g_t))
+        if dt is not None and bool(np.any((dt <= bounds[0]) | (dt >= bounds[1]))):
+            pred = _model_decrease(lin, dp, dt)  # a step held on a bound
+        else:
+            # predicted decrease of the Gauss-Newton model: 1/2 (mu d^T diag d - g^T d)
+            scale_p = _diag_scale(lin.D)
+            pred = 0.5 * (mu * float(np.sum(dp * dp * scale_p)) - float(np.sum(dp * lin.g_p)))
+            if dt is not None and lin.g_t is not None and lin.E is not None:
+                pred += 0.5 * (mu * float(np.sum(dt * dt * _diag_scale(lin.E)))
+                               - float(dt @ lin.g_t))
         step_norm = float(np.sqrt(np.sum(dp * dp) + (0.0 if dt is None else dt @ dt)))
-        x_norm = float(np.linalg.norm(theta) + np.linalg.norm(poses.translation))
+        with np.errstate(over="ignore"):  # inf for absurd inputs: no step is then small
+            x_norm = float(np.linalg.norm(theta) + np.linalg.norm(poses.translation))
         if step_norm <= cfg.parameter_tolerance * (x_norm + cfg.parameter_tolerance):
             termination = "parameter_tolerance"
             break

@@ -146,6 +146,29 @@ class Linearization:
     in_view: dict[str, int] = field(default_factory=dict)
 
 
+def pair_sqrt_information(config: FitConfig, measured_rel: SE3) -> FloatArray:
+    """(E, 6, 6) square-root information ``L`` (``C = L^T L``) of each pairwise edge whose
+    measured relative pose is ``measured_rel`` (E,), times ``sqrt(lambda_pair)``: from
+    ``pair_information``, or from the configured sigmas and each step's length."""
+    n_edges = measured_rel.batch_shape[0] if measured_rel.batch_shape else 1
+    if config.pair_information is not None:
+        C = np.asarray(config.pair_information, dtype=np.float64).reshape(6, 6)
+        C = 0.5 * (C + C.T)
+        try:
+            L = np.linalg.cholesky(C).T  # C = L^T L
+        except np.linalg.LinAlgError as exc:
+            raise ValueError("pair_information must be positive definite") from exc
+        sqrt_info = np.broadcast_to(L, (n_edges, 6, 6))
+    else:
+        step = np.linalg.norm(measured_rel.translation.reshape(-1, 3), axis=-1)
+        sig_t = np.sqrt(config.pair_sigma_t**2 + (config.pair_sigma_t_per_m * step) ** 2)
+        diag = np.empty((step.size, 6))
+        diag[:, :3] = 1.0 / sig_t[:, None]
+        diag[:, 3:] = 1.0 / math.radians(config.pair_sigma_r_deg)
+        sqrt_info = diag[:, :, None] * np.eye(6)
+    return math.sqrt(config.lambda_pair) * np.asarray(sqrt_info)
+
+
 class FitProblem:
     """The least-squares problem of one flight (or window of keyframes) under one
     :class:`FitConfig`.
@@ -183,23 +206,8 @@ class FitProblem:
         #: (E, 3, 3) fixed frames of the pairwise translation residual, or None (estimated).
         self._pair_frames: FloatArray | None = (
             meas[:-1].rotation_matrix() if config.pair_frame == "measured" else None)
-        if config.pair_information is not None:
-            C = np.asarray(config.pair_information, dtype=np.float64).reshape(6, 6)
-            C = 0.5 * (C + C.T)
-            try:
-                L = np.linalg.cholesky(C).T  # C = L^T L
-            except np.linalg.LinAlgError as exc:
-                raise ValueError("pair_information must be positive definite") from exc
-            sqrt_info = np.broadcast_to(L, (max(self.num_keyframes - 1, 0), 6, 6))
-        else:
-            step = np.linalg.norm(self._measured_rel.translation, axis=-1)
-            sig_t = np.sqrt(config.pair_sigma_t**2 + (config.pair_sigma_t_per_m * step) ** 2)
-            diag = np.empty((step.size, 6))
-            diag[:, :3] = 1.0 / sig_t[:, None]
-            diag[:, 3:] = 1.0 / math.radians(config.pair_sigma_r_deg)
-            sqrt_info = diag[:, :, None] * np.eye(6)
         #: (E, 6, 6) per-edge square-root information L (C = L^T L), times sqrt(lambda).
-        self._sqrt_info: FloatArray = math.sqrt(config.lambda_pair) * np.asarray(sqrt_info)
+        self._sqrt_info: FloatArray = pair_sqrt_information(config, self._measured_rel)
         self.prior_position = data.world_T_cam.translation[self.keyframes].copy()
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)

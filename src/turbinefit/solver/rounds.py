@@ -44,8 +44,8 @@ Finish = Literal["cost", "jacobian", "skip"]
 @dataclass
 class RoundsOutcome:
     """What :func:`run_rounds` returns: the estimate, its linearisation (see
-    :data:`Finish`), LM iterations over all rounds, why the last LM run stopped, and the
-    rounds run."""
+    :data:`Finish`), LM iterations over all rounds, why the last LM run stopped, the
+    rounds run, and the correspondences the linearisation was made with."""
 
     poses: SE3
     theta: FloatArray
@@ -53,6 +53,7 @@ class RoundsOutcome:
     iterations: int
     termination: str
     rounds: int
+    correspondences: Correspondences
 
 
 def corr_change(a: Correspondences, b: Correspondences) -> tuple[float, float]:
@@ -136,4 +137,4 @@ def run_rounds(
                                 with_jacobian=not (done and finish == "cost"))
         if done:
             break
-    return RoundsOutcome(poses, theta, lin, total, termination, done_rounds)
+    return RoundsOutcome(poses, theta, lin, total, termination, done_rounds, corr)

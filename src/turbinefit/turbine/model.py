@@ -127,6 +127,16 @@ class TurbineParams:
 #: Period of each parameter (0 = not periodic).
 PERIODS = np.array([0.0, 0.0, 0.0, HEADING_PERIOD, 0.0, BLADE_PERIOD, 0.0])
 
+#: Plausible range of each length of a real turbine [m]: tower (hub height) 10-250 m,
+#: nacelle overhang 0-25 m, blade 5-150 m. The largest machines built reach a hub height
+#: of about 180 m, an overhang of about 15 m and a rotor radius of about 130 m; the
+#: smallest grid machines have towers of about 20 m and blades of about 10 m. The solver
+#: keeps theta inside (:func:`turbinefit.solver.linalg.bounded_step`) and a fit that ends
+#: on a bound is not trusted (:mod:`turbinefit.solver.verdict`). Base, heading and blade
+#: rotation are unbounded (-inf, inf).
+THETA_LOWER = np.array([-np.inf, -np.inf, 10.0, -np.inf, 0.0, -np.inf, 5.0])
+THETA_UPPER = np.array([np.inf, np.inf, 250.0, np.inf, 25.0, np.inf, 150.0])
+
 
 def param_errors(estimate: TurbineParams, reference: TurbineParams) -> FloatArray:
     """Signed per-parameter errors ``estimate - reference`` (7,), angles wrapped modulo
