@@ -37,7 +37,7 @@ def test_cli_experiment_and_report(tmp_path: Path, capsys: pytest.CaptureFixture
     assert main(["experiment", "roll", "--config", str(sweep_file), "--out", str(out),
                  "--workers", "1"]) == 0
     printed = capsys.readouterr().out
-    assert "roll: 4 rows" in printed and "rows/s" in printed
+    assert "roll: 4 of 4 planned rows" in printed and "rows/s" in printed
     report = (out / "report.md").read_text()
     assert "Mean absolute camera roll error" in report and (out / "roll.png").is_file()
     # the report is rebuilt from the rows alone
