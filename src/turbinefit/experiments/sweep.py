@@ -451,9 +451,9 @@ def _run_ray(tasks: list[FlightSpec], cfg: SweepConfig,
         yield ray.get(done[0])
 
 
-def _append(f: io.FileIO, text: str, table: Path) -> None:
-    """Append ``text`` to the table ``f`` (unbuffered), all of it or, if the disk is full,
-    none of it."""
+def _append(f: io.FileIO, text: str, table: Path, kept: int) -> None:
+    """Append ``text`` to the table ``f`` (unbuffered) after its ``kept`` rows, all of it
+    or, if the disk is full, none of it."""
     size = f.seek(0, os.SEEK_END)
     data = memoryview(text.encode("utf-8"))
     try:
@@ -462,7 +462,11 @@ def _append(f: io.FileIO, text: str, table: Path) -> None:
     except OSError as exc:
         with contextlib.suppress(OSError):
             f.truncate(size)  # no partial line
-        raise write_error(exc, table) from exc
+        err = write_error(exc, table)
+        if kept:
+            err = InputError(f"{err}; its {kept} finished row{'s' if kept > 1 else ''} "
+                             "kept: run the same command again to resume")
+        raise err from exc
 
 
 @dataclass
@@ -547,7 +551,7 @@ def _run_sweep(cfg: SweepConfig, out: Path, backend: str, workers: int | None,
         finished = total - len(todo)
         for flight_rows in results:
             fresh = [r for r in flight_rows if (r["flight"], r["config"]) not in done]
-            _append(f, format_rows(fresh), table)
+            _append(f, format_rows(fresh), table, len(rows))
             rows.extend(fresh)
             new += len(fresh)
             finished += 1

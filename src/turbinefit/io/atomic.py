@@ -3,12 +3,12 @@
 Nothing here knows about file formats; the writers in :mod:`turbinefit.io` use it.
 
 * :func:`write_text_atomic` / :func:`write_bytes_atomic` write into a hidden temporary file
-  ``.<name>.tmp-<pid>-<host>-<random>`` in the destination's directory, flush and ``fsync`` it, then
-  ``os.replace`` it over the destination. Readers see the old file or the new one, never a
-  partial one; an existing file is replaced.
+  ``.<name>.tmp-<pid>-<host>-<random>`` in the destination's directory, flush and ``fsync``
+  it, then ``os.replace`` it over the destination. Readers see the old file or the new one,
+  never a partial one; an existing file is replaced.
 * :func:`atomic_output_dir` yields a hidden temporary sibling directory
-  ``.<name>.tmp-<pid>-<host>-<random>`` to fill, and moves it into place when the ``with`` block
-  succeeds. **Existing destination:** a missing path or an empty directory is simply
+  ``.<name>.tmp-<pid>-<host>-<random>`` to fill, and moves it into place when the ``with``
+  block succeeds. **Existing destination:** a missing path or an empty directory is simply
   replaced; a non-empty directory is refused with an :class:`InputError` unless
   ``overwrite=True`` (and an optional ``may_replace`` check accepts it), in which case the
   old directory is renamed aside (``.<name>.old-<pid>-<host>-<random>``), the new one
@@ -180,12 +180,8 @@ def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:
         raise InputError("is a directory, cannot write a file there", path=p)
     _make_parent(p)
     tmp = _sibling(p, "tmp")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-    except OSError as e:
-        raise write_error(e, p) from e
-    try:
-        with os.fdopen(fd, "wb") as f:
+    try:  # created inside the try: a signal right after still removes it
+        with open(tmp, "xb") as f:  # O_EXCL, 0o666 minus the umask
             f.write(data)
             f.flush()
             if fsync:
@@ -293,14 +289,15 @@ def _move_into_place(tmp: Path, path: Path) -> None:
         return
     old = _sibling(path, "old")
     try:
-        os.rename(path, old)
-    except OSError as e:
-        raise InputError(f"cannot move the old directory aside: {e.strerror or e}",
-                         path=path) from e
-    try:
+        try:
+            os.rename(path, old)
+        except OSError as e:
+            raise InputError(f"cannot move the old directory aside: {e.strerror or e}",
+                             path=path) from e
         os.rename(tmp, path)
-    except BaseException as e:
-        os.rename(old, path)  # put the old directory back
+    except BaseException as e:  # a signal too, whichever rename it came after
+        if os.path.lexists(old) and not os.path.lexists(path):
+            os.rename(old, path)  # put the old directory back
         if isinstance(e, OSError):
             raise InputError(f"cannot move output into place: {e.strerror or e}",
                              path=path) from e
@@ -343,19 +340,15 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
     remove_stale_temporaries(p.parent, p.name)
     check_output_dir(p, overwrite, may_replace, overwrite_hint)
     _make_parent(p)
-    while True:
-        tmp = _sibling(p, "tmp")
+    tmp = _sibling(p, "tmp")  # unique: this process's pid and 48 random bits
+    try:  # created inside the try: a signal right after still removes it
         try:
             os.mkdir(tmp)  # 0o777 minus umask, unlike tempfile.mkdtemp's 0o700
-            break
-        except FileExistsError:  # pragma: no cover - 48 random bits
-            continue
         except OSError as e:
             if is_disk_full(e):
                 raise write_error(e, p) from e
             raise InputError(f"cannot create the output folder: {e.strerror or e}",
                              path=p) from e
-    try:
         yield tmp
         check_output_dir(p, overwrite, may_replace, overwrite_hint, appeared=True)
         _move_into_place(tmp, p)
