@@ -9,9 +9,9 @@ line's ``--help``) stays cheap.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from turbinefit._lazy import lazy_exports
+
+TYPE_CHECKING = False  # not typing's: the command line imports this before its signal handlers
 
 if TYPE_CHECKING:
     from turbinefit.flight import Flight as Flight

@@ -68,7 +68,7 @@ import math
 import os
 import queue
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
@@ -408,7 +408,8 @@ class DetectorPool:
     def workers(self) -> int:
         return len(self.detectors)
 
-    def map(self, fn: Callable[[HeatmapDetector, T], R], items: Iterable[T]) -> Iterator[R]:
+    def map(self, fn: Callable[[HeatmapDetector, T], R],
+            items: Iterable[T]) -> Generator[R, None, None]:
         """``fn(detector, item)`` for each of ``items``, run on the pool's threads with
         a detector used by one call at a time, yielded in the order of ``items`` (at most
         twice :attr:`workers` items are worked on ahead of the one yielded).

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from support import FIT_OUTPUTS, assert_one_line_error, entries
+from support import FIT_OUTPUTS, assert_one_line_error, entries, run
 
 import turbinefit
 from turbinefit.cli import build_parser, main
@@ -103,3 +103,19 @@ def test_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
     assert err.startswith("usage: turbinefit")
     assert re.search(pattern, err.splitlines()[-1]), err
     assert entries(tmp_path) == []
+
+
+def test_a_full_disk_anywhere_is_one_line_naming_the_final_path(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    import turbinefit.cli.report
+
+    def full(args: argparse.Namespace) -> int:  # e.g. a figure saved into a temporary folder
+        raise OSError(errno.ENOSPC, "No space left on device",
+                      "/data/.out.tmp-123-0badc0de-0123456789ab/scene.png")
+
+    monkeypatch.setattr(turbinefit.cli.report, "run", full)
+    rc, out, err = run(capsys, "report", "anywhere")
+    assert_one_line_error(rc, out, err, r"^turbinefit: error: no space left on device writing "
+                          r"/data/out/scene\.png$")

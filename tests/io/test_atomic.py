@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from support import leftovers, raises_input_error
 
+from turbinefit.errors import InputError
 from turbinefit.io import atomic_output_dir, write_bytes_atomic, write_text_atomic
 from turbinefit.io.atomic import check_output_dir
 
@@ -126,3 +127,118 @@ def test_atomic_output_dir_restores_old_dir_when_final_rename_fails(
     assert "cross-device" in str(info.value)
     assert sorted(p.name for p in out.iterdir()) == ["old.txt"]
     assert leftovers(tmp_path) == []
+
+
+# ------------------------------------------------------------------ killed runs, full disks
+
+def _dead_pid() -> int:
+    """The pid of a process that has ended."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    return int(proc.stdout)
+
+
+def _hidden(out: Path, tag: str, pid: int, host: str | None = None) -> Path:
+    from turbinefit.io.atomic import _host
+
+    return out.with_name(f".{out.name}.{tag}-{pid}-{host or _host()}-{'a' * 12}")
+
+
+@pytest.mark.skipif(os.name != "posix", reason="liveness of a pid is tested on POSIX")
+def test_stale_temporaries_of_dead_processes_are_removed(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    dead = _dead_pid()
+    stale = _hidden(out, "tmp", dead)
+    stale.mkdir()
+    (stale / "keyframes.txt").write_text("valid looking\n")
+    stale_file = _hidden(tmp_path / "report.md", "tmp", dead)
+    stale_file.write_text("half")
+    live = _hidden(out, "tmp", os.getppid())  # a live process: another run, still working
+    live.mkdir()
+    elsewhere = _hidden(out, "tmp", dead, host="0badc0de")  # a shared folder: not ours to judge
+    elsewhere.mkdir()
+    other = _hidden(tmp_path / "other", "tmp", dead)  # another output's: left to its next run
+    other.mkdir()
+    with atomic_output_dir(out) as tmp:
+        (tmp / "a.txt").write_text("a")
+    assert leftovers(tmp_path) == sorted(p.name for p in (elsewhere, live, other, stale_file))
+    # the sweep folder's own files: all stale ones at once
+    from turbinefit.io.atomic import remove_stale_temporaries
+
+    assert sorted(remove_stale_temporaries(tmp_path)) == sorted([other, stale_file])
+    assert leftovers(tmp_path) == sorted(p.name for p in (elsewhere, live))
+
+
+@pytest.mark.skipif(os.name != "posix", reason="liveness of a pid is tested on POSIX")
+def test_a_kill_between_the_renames_of_overwrite_loses_nothing(tmp_path: Path) -> None:
+    from turbinefit.io.atomic import remove_stale_temporaries
+
+    out = tmp_path / "out"
+    old = _hidden(out, "old", _dead_pid())
+    old.mkdir()  # the previous output, moved aside; the new one never arrived
+    (old / "a.txt").write_text("previous")
+    assert remove_stale_temporaries(tmp_path, "out") == [old]
+    assert (out / "a.txt").read_text() == "previous" and leftovers(tmp_path) == []
+    old.mkdir()  # moved aside, and the new output is in place: the old one goes
+    assert remove_stale_temporaries(tmp_path, "out") == [old]
+    assert leftovers(tmp_path) == [] and (out / "a.txt").read_text() == "previous"
+
+
+def test_a_full_disk_names_the_final_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from turbinefit.io import atomic
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.os, "fsync", full)
+    out = tmp_path / "out"
+    with pytest.raises(InputError) as exc, atomic_output_dir(out) as tmp:
+        write_text_atomic(tmp / "summary.json", "{}")
+    assert str(exc.value) == f"no space left on device writing {out / 'summary.json'}"
+    assert leftovers(tmp_path) == [] and not out.exists()
+    quota = atomic.write_error(OSError(errno.EDQUOT, "Disk quota exceeded"), tmp_path / "x")
+    assert str(quota) == f"disk quota exceeded writing {tmp_path / 'x'}"
+
+
+def test_public_path_names_what_a_temporary_is_written_for(tmp_path: Path) -> None:
+    from turbinefit.io.atomic import public_path
+
+    hidden = _hidden(tmp_path / "fit", "tmp", 42) / "summary.json"
+    assert public_path(hidden) == tmp_path / "fit" / "summary.json"
+    assert public_path(tmp_path / ".hidden" / "a.txt") == tmp_path / ".hidden" / "a.txt"
+
+
+def test_an_output_folder_that_cannot_be_created_says_so(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from turbinefit.io import atomic
+
+    real_mkdir = os.mkdir
+
+    def no_such_dir(path: str, mode: int = 0o777) -> None:  # /proc refuses any new entry
+        if Path(path).name.startswith(".x.tmp-"):
+            raise OSError(errno.ENOENT, "No such file or directory")
+        real_mkdir(path, mode)
+
+    monkeypatch.setattr(atomic.os, "mkdir", no_such_dir)
+    out = tmp_path / "x"
+    with pytest.raises(InputError) as exc, atomic_output_dir(out):
+        pass
+    assert str(exc.value) == f"{out}: cannot create the output folder: No such file or directory"
+
+
+def test_an_output_made_by_another_process_meanwhile_is_named_as_such(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    with pytest.raises(InputError, match=r"another process wrote this output directory while "
+                       r"this run was working \(use --overwrite\)"):
+        with atomic_output_dir(out, overwrite_hint="use --overwrite") as tmp:
+            (tmp / "mine.txt").write_text("mine")
+            out.mkdir()
+            (out / "theirs.txt").write_text("theirs")
+    assert os.listdir(out) == ["theirs.txt"] and leftovers(tmp_path) == []

@@ -4,21 +4,28 @@
 Each command module has ``add_parser(subparsers, help)`` and ``run(args) -> int``, and
 imports what it runs only inside ``run``: ``turbinefit --help`` builds every command as a
 stub and loads no command module; ``turbinefit COMMAND ...`` builds and loads that one.
-Every command prints one clear line and exits with status 2 on bad input (no traceback);
+Every command prints one clear line and exits with status 2 on bad input (no traceback),
+and on SIGINT, SIGTERM or SIGHUP cleans up, prints one line and exits with status 130, 143
+or 129 (:mod:`turbinefit.cli.signals`, set up before anything else is imported);
 ``fit`` and ``track`` exit with status 3 when their verdict is ``failed`` (outputs written).
 """
 
 from __future__ import annotations
 
-import argparse
-import importlib
-import sys
-from collections.abc import Collection, Sequence
-from types import ModuleType
+from turbinefit.cli import signals
+
+signals.exit_quietly_on_signals()
+
+import argparse  # noqa: E402 - after the signal handlers: an early Ctrl-C prints no traceback
+import importlib  # noqa: E402
+import sys  # noqa: E402
+from collections.abc import Collection, Sequence  # noqa: E402
+from types import ModuleType  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 #: ``fit`` or ``track`` ran and wrote its outputs, but its verdict is ``failed``.
 EXIT_FIT_FAILED = 3
+#: The status of Ctrl-C; SIGTERM gives 143 and SIGHUP 129 (128 + the signal's number).
 EXIT_INTERRUPTED = 130
 
 #: Every command: name -> one line of help (the module is ``turbinefit.cli.<name>``).
@@ -88,16 +95,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     # the command is the first word that is not an option (the top level has no option
     # that takes a value)
     command = next((a for a in args_in if not a.startswith("-")), None)
-    try:
-        parser = build_parser({command} if command in COMMANDS else ())
-        args = parser.parse_args(args_in)
-        from turbinefit.errors import TurbinefitError
-
+    with signals.RaisingOnSignals():
         try:
-            return int(_module(args.command).run(args))
-        except TurbinefitError as exc:
-            print(f"turbinefit: error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("turbinefit: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+            parser = build_parser({command} if command in COMMANDS else ())
+            args = parser.parse_args(args_in)
+            from turbinefit.errors import TurbinefitError
+
+            try:
+                return int(_module(args.command).run(args))
+            except TurbinefitError as exc:
+                print(f"turbinefit: error: {exc}", file=sys.stderr)
+                return EXIT_BAD_INPUT
+            except OSError as exc:
+                from turbinefit.io.atomic import is_disk_full, write_error
+
+                if not is_disk_full(exc):
+                    raise
+                print(f"turbinefit: error: {write_error(exc, exc.filename)}", file=sys.stderr)
+                return EXIT_BAD_INPUT
+        except KeyboardInterrupt as exc:  # and Interrupted: SIGTERM, SIGHUP
+            signum = signals.signal_of(exc)
+            print(signals.message(signum), file=sys.stderr)
+            return signals.exit_status(signum)

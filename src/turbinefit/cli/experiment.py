@@ -61,7 +61,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from turbinefit.errors import InputError
     from turbinefit.experiments import STUDIES, study_config
-    from turbinefit.experiments.studies import run_study, write_index
+    from turbinefit.experiments.studies import rows_text, run_study, write_index
     from turbinefit.experiments.sweep import read_sweep_config
 
     studies = list(STUDIES) if args.study == "all" else [args.study]
@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             failed = sum(r["status"] != "ok" for r in rep.rows)
             rate = rep.new_rows / rep.seconds if rep.seconds > 0 else 0.0
-            print(f"{st}: {len(rep.rows)} rows ({rep.new_rows} new in {rep.seconds:.0f} s, "
+            print(f"{st}: {rows_text(cfg, rep.rows)} ({rep.new_rows} new in {rep.seconds:.0f} s, "
                   f"{rate:.2f} rows/s), {failed} failed; report {out / 'report.md'}")
     if args.study == "all":
         index = write_index(root)

@@ -17,14 +17,24 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     return r
 
 
+def _report(folder: Path) -> None:
+    """Write the report of the study in ``folder`` and say how many rows it is drawn from."""
+    from turbinefit.experiments import write_report
+    from turbinefit.experiments.studies import load_study, planned_rows, rows_text
+
+    cfg, rows = load_study(folder)
+    path = write_report(folder)
+    note = " (incomplete)" if len(rows) < planned_rows(cfg) else ""
+    print(f"wrote {path} from {rows_text(cfg, rows)}{note}")
+
+
 def run(args: argparse.Namespace) -> int:
     from turbinefit.errors import InputError
-    from turbinefit.experiments import write_report
     from turbinefit.experiments.studies import write_index
 
     folder = args.folder
     if (folder / "sweep.yaml").is_file():
-        print(f"wrote {write_report(folder)}")
+        _report(folder)
         return 0
     subs = sorted(p for p in folder.iterdir() if (p / "sweep.yaml").is_file()) \
         if folder.is_dir() else []
@@ -32,6 +42,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("not an experiment folder (no sweep.yaml in it or its sub-folders)",
                          folder)
     for p in subs:
-        print(f"wrote {write_report(p)}")
+        _report(p)
     print(f"wrote {write_index(folder)}")
     return 0

@@ -168,11 +168,22 @@ def reduction_stats(rows: list[dict[str, Any]], metric: str) -> dict[str, float]
     return out
 
 
+def planned_rows(cfg: SweepConfig) -> int:
+    """The rows the whole sweep has: one per flight and configuration."""
+    return cfg.flights * len(cfg.configs)
+
+
+def rows_text(cfg: SweepConfig, rows: list[dict[str, Any]]) -> str:
+    """How many of the planned rows ``rows`` are, e.g. ``8 of 24 planned rows``."""
+    return f"{len(rows)} of {planned_rows(cfg)} planned rows"
+
+
 def summarize(cfg: SweepConfig, rows: list[dict[str, Any]]) -> dict[str, Any]:
     """The study's numbers: per configuration the reduction statistics of position,
     orientation and model-point error, least-squares lines of final against initial
     error, failures; plus the study's own figures (ordering, recovery, roll, basin)."""
     out: dict[str, Any] = {"study": cfg.name, "rows": len(rows),
+                           "planned_rows": planned_rows(cfg),
                            "failed": sum(r["status"] != "ok" for r in rows), "configs": {}}
     for name in cfg.configs:
         ok = _ok(rows, name)
@@ -369,9 +380,12 @@ def write_report(folder: str | os.PathLike[str]) -> Path:
             figures.append(("basin.png", "Success rate against the initial error sizes"))
     runs = _read_runs(root)
     lines = [f"# turbinefit experiment: {cfg.name}", ""]
+    if len(rows) < planned_rows(cfg):
+        lines += [f"**Incomplete: drawn from {rows_text(cfg, rows)}** (the run was stopped; "
+                  "running the same `turbinefit experiment` command again completes it).", ""]
     lines += [f"{cfg.flights} simulated flights of {cfg.keyframes} keyframes ({cfg.width}x"
               f"{cfg.height} heat-maps, turbine {cfg.turbine}, sweep seed {cfg.seed}), "
-              f"{len(names)} configuration(s): {len(rows)} rows, {summ['failed']} failed. "
+              f"{len(names)} configuration(s): {rows_text(cfg, rows)}, {summ['failed']} failed. "
               f"Initial pose error scale {cfg.pose_scale[0]:g}-{cfg.pose_scale[1]:g}, turbine "
               f"error scale {cfg.theta_scale[0]:g}-{cfg.theta_scale[1]:g}, heat-map fault "
               f"scale {cfg.heatmap_scale[0]:g}-{cfg.heatmap_scale[1]:g} (1 = the simulator's "
@@ -513,6 +527,8 @@ def write_index(root: str | os.PathLike[str]) -> Path:
             head = "by median final position: " + " > ".join(
                 f"{n} {s['configs'][n]['position_m']['final_median']:.3f} m"
                 for n in s["ranking_by_median_final_position"])
+        if len(rows) < planned_rows(cfg):
+            head = f"**incomplete: {rows_text(cfg, rows)}**; {head}"
         lines.append(f"| {cfg.name} | {cfg.flights} x {len(cfg.configs)} | {head} | "
                      f"[{sub.name}/{REPORT_FILE}]({sub.name}/{REPORT_FILE}) |")
     lines.append("")

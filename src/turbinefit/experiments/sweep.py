@@ -30,14 +30,16 @@ needed for resumable CSV rows.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import io
 import math
 import os
+import shutil
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,7 +49,13 @@ import numpy as np
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import accuracy, roll_errors_deg
 from turbinefit.geometry.se3 import SE3
-from turbinefit.io.atomic import read_text, write_text_atomic
+from turbinefit.io.atomic import (
+    is_disk_full,
+    read_text,
+    remove_stale_temporaries,
+    write_error,
+    write_text_atomic,
+)
 from turbinefit.sim.noise import DEFAULT_TURBINE_SIGMA
 from turbinefit.sim.scenario import SimConfig, simulate_flight
 from turbinefit.solver.config import PRESETS, FitConfig
@@ -359,10 +367,16 @@ _INT = {"flight", "seed", "keyframes", "iterations", "rounds"}
 _STR = {"config", "status", "reason", "turbine", "termination", "odometry"}
 
 
-def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+def read_rows(path: str | os.PathLike[str], missing_ok: bool = False) -> list[dict[str, Any]]:
     """The rows of a sweep table, typed (numbers as float/int, empty as None). A last line
-    cut short by an interruption is skipped; any other malformed line is an InputError."""
+    cut short by an interruption is skipped; any other malformed line is an InputError.
+    ``missing_ok``: no rows for a missing table (and for an unreadable one)."""
     p = Path(path)
+    if missing_ok:
+        try:
+            return read_rows(p)
+        except InputError:
+            return []
     lines = read_text(p).splitlines(keepends=True)
     if not lines:
         raise InputError("empty sweep table (no header)", p)
@@ -398,39 +412,31 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
 # running
 # ---------------------------------------------------------------------------------------
 def _run_local(tasks: list[FlightSpec], cfg: SweepConfig, configs: list[str],
-               workers: int) -> Iterator[list[dict[str, Any]]]:
+               workers: int) -> Generator[list[dict[str, Any]], None, None]:
     if workers <= 1:
         for spec in tasks:
             yield run_flight(cfg, spec, configs)
         return
     import concurrent.futures as cf
-    import multiprocessing as mp
+    from concurrent.futures.process import BrokenProcessPool
 
-    # one solver thread per process: two processes that each use both cores slow each
-    # other several times over (measured on the tracker). The workers are spawned, so they
-    # read the variable when their OpenMP runtime loads.
-    ctx = mp.get_context("spawn")
-    saved = os.environ.get("OMP_NUM_THREADS")
-    os.environ["OMP_NUM_THREADS"] = "1"
-    try:
-        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = [pool.submit(run_flight, cfg, spec, configs) for spec in tasks]
+    from turbinefit.errors import TurbinefitError
+    from turbinefit.experiments.workers import process_pool
+
+    # workers that end with this process, one solver thread each
+    with process_pool(workers) as pool:
+        futures = [pool.submit(run_flight, cfg, spec, configs) for spec in tasks]
+        for fut in cf.as_completed(futures):
             try:
-                for fut in cf.as_completed(futures):
-                    yield fut.result()
-            except BaseException:
-                for fut in futures:
-                    fut.cancel()
-                raise
-    finally:
-        if saved is None:
-            os.environ.pop("OMP_NUM_THREADS", None)
-        else:
-            os.environ["OMP_NUM_THREADS"] = saved
+                rows = fut.result()
+            except BrokenProcessPool:
+                raise TurbinefitError("a worker process of the sweep was killed (out of memory?); "
+                                      "the finished rows are kept: run it again to resume") from None
+            yield rows
 
 
 def _run_ray(tasks: list[FlightSpec], cfg: SweepConfig,
-             configs: list[str]) -> Iterator[list[dict[str, Any]]]:
+             configs: list[str]) -> Generator[list[dict[str, Any]], None, None]:
     try:
         import ray
     except ImportError:
@@ -443,6 +449,24 @@ def _run_ray(tasks: list[FlightSpec], cfg: SweepConfig,
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
         yield ray.get(done[0])
+
+
+def _append(f: io.FileIO, text: str, table: Path, kept: int) -> None:
+    """Append ``text`` to the table ``f`` (unbuffered) after its ``kept`` rows, all of it
+    or, if the disk is full, none of it."""
+    size = f.seek(0, os.SEEK_END)
+    data = memoryview(text.encode("utf-8"))
+    try:
+        while data:
+            data = data[f.write(data) or 0:]
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            f.truncate(size)  # no partial line
+        err = write_error(exc, table)
+        if kept:
+            err = InputError(f"{err}; its {kept} finished row{'s' if kept > 1 else ''} "
+                             "kept: run the same command again to resume")
+        raise err from exc
 
 
 @dataclass
@@ -464,16 +488,37 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
     sweep: ``out_dir/sweep.yaml`` is compared with ``cfg``). A non-empty folder without a
     ``sweep.yaml`` is refused, so that nothing of the user's is overwritten. ``progress(done, total)`` is
     called after each flight (flights, not rows).
-    """
-    import yaml
 
+    If it stops (an error, an interruption, a full disk: one :class:`InputError` naming the
+    table), the rows finished are kept in the table, whole, for the next run to resume
+    from; a folder this run created and wrote no row into is removed.
+    """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("not a directory", out)
+    if out.is_dir():
+        remove_stale_temporaries(out)  # left by a killed run
     if out.is_dir() and any(out.iterdir()) and not (out / "sweep.yaml").exists():
         raise InputError("folder is not empty and holds no sweep (sweep.yaml): choose a new "
                          "or empty folder", out)
-    out.mkdir(parents=True, exist_ok=True)
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise write_error(exc, out) if is_disk_full(exc) else InputError(
+            f"cannot create the output folder: {exc.strerror or exc}", out) from exc
+    try:
+        return _run_sweep(cfg, out, backend, workers, progress)
+    except BaseException:
+        if created and not read_rows(out / ROWS_FILE, missing_ok=True):
+            shutil.rmtree(out, ignore_errors=True)  # nothing worth keeping: leave no trace
+        raise
+
+
+def _run_sweep(cfg: SweepConfig, out: Path, backend: str, workers: int | None,
+               progress: Callable[[int, int], None] | None) -> SweepReport:
+    import yaml
+
     sweep_file = out / "sweep.yaml"
     text = yaml.safe_dump(cfg.to_dict(), sort_keys=False)
     if sweep_file.exists():
@@ -501,12 +546,12 @@ def run_sweep(cfg: SweepConfig, out_dir: str | os.PathLike[str], *, backend: str
         results = _run_ray(todo, cfg, names)
     else:
         raise InputError(f"unknown backend {backend!r} (choose local or ray)", field="--backend")
-    with open(table, "a", encoding="utf-8") as f:
+    with open(table, "ab", buffering=0) as f, contextlib.closing(results):
+        # closing: an exception here (a full disk, a signal) stops the workers at once
         finished = total - len(todo)
         for flight_rows in results:
             fresh = [r for r in flight_rows if (r["flight"], r["config"]) not in done]
-            f.write(format_rows(fresh))
-            f.flush()
+            _append(f, format_rows(fresh), table, len(rows))
             rows.extend(fresh)
             new += len(fresh)
             finished += 1

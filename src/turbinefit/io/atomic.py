@@ -3,20 +3,26 @@
 Nothing here knows about file formats; the writers in :mod:`turbinefit.io` use it.
 
 * :func:`write_text_atomic` / :func:`write_bytes_atomic` write into a hidden temporary file
-  ``.<name>.tmp-<random>`` in the destination's directory, flush and ``fsync`` it, then
-  ``os.replace`` it over the destination. Readers see the old file or the new one, never a
-  partial one; an existing file is replaced.
+  ``.<name>.tmp-<pid>-<host>-<random>`` in the destination's directory, flush and ``fsync``
+  it, then ``os.replace`` it over the destination. Readers see the old file or the new one,
+  never a partial one; an existing file is replaced.
 * :func:`atomic_output_dir` yields a hidden temporary sibling directory
-  ``.<name>.tmp-<random>`` to fill, and moves it into place when the ``with`` block
-  succeeds. **Existing destination:** a missing path or an empty directory is simply
+  ``.<name>.tmp-<pid>-<host>-<random>`` to fill, and moves it into place when the ``with``
+  block succeeds. **Existing destination:** a missing path or an empty directory is simply
   replaced; a non-empty directory is refused with an :class:`InputError` unless
   ``overwrite=True`` (and an optional ``may_replace`` check accepts it), in which case the
-  old directory is renamed aside (``.<name>.old-<random>``), the new one renamed into place
-  and only then the old one deleted; if the second rename fails the old directory is put
-  back. A destination that is a file or a symbolic link is always refused.
-* On any exception (including ``KeyboardInterrupt``) the temporary file or directory is
-  removed and the destination is left untouched. Only a hard kill (SIGKILL, power loss) can
-  leave a ``.<name>.tmp-*`` entry behind; it is never mistaken for output.
+  old directory is renamed aside (``.<name>.old-<pid>-<host>-<random>``), the new one
+  renamed into place and only then the old one deleted; if the second rename fails the old
+  directory is put back. A destination that is a file or a symbolic link is always refused.
+* On any exception (including ``KeyboardInterrupt`` and the command's signals) the
+  temporary file or directory is removed and the destination is left untouched. Only a hard
+  kill (SIGKILL, power loss) can leave a ``.<name>.tmp-*`` entry behind; it is never
+  mistaken for output, and the next :func:`atomic_output_dir` into the same place removes
+  it (:func:`remove_stale_temporaries`) once the process named in it is gone (a
+  ``.<name>.old-*`` is removed if ``<name>`` exists, else put back: the kill came between
+  the two renames). Entries of a live process, or of another host, are never touched.
+* A full disk (or quota) is one line naming the final path, never the hidden temporary one
+  (:func:`write_error`, :func:`public_path`).
 
 Directory writes are atomic with respect to other processes and to exceptions; files inside
 the temporary directory are not individually ``fsync``-ed (writing thousands of heat-maps
@@ -34,11 +40,14 @@ All failures are :class:`turbinefit.errors.InputError` naming the path concerned
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import re
 import shutil
 import stat
 import uuid
 import warnings
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -48,9 +57,87 @@ from turbinefit.io.limits import MAX_TABLE_BYTES, read_input_bytes
 StrPath = str | os.PathLike[str]
 
 
+#: The errors of a full disk or an exhausted quota.
+DISK_FULL = frozenset({errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)})
+#: A hidden temporary (``tmp``) or replaced (``old``) entry: name, tag, owner's pid and host.
+_HIDDEN = re.compile(r"\.(?P<name>.+)\.(?P<tag>tmp|old)-(?P<pid>\d+)-(?P<host>[0-9a-f]{8})"
+                     r"-[0-9a-f]{12}")
+
+
+def _host() -> str:
+    """This machine, as 8 hex digits (the temporary names of a shared folder say whose)."""
+    node = os.uname().nodename if hasattr(os, "uname") else os.environ.get("COMPUTERNAME", "")
+    return f"{zlib.crc32(node.encode()):08x}"
+
+
 def _sibling(path: Path, tag: str) -> Path:
-    """A hidden, random, not yet existing sibling name of ``path``."""
-    return path.with_name(f".{path.name}.{tag}-{uuid.uuid4().hex[:12]}")
+    """A hidden, random, not yet existing sibling name of ``path`` that names its owner."""
+    return path.with_name(f".{path.name}.{tag}-{os.getpid()}-{_host()}-{uuid.uuid4().hex[:12]}")
+
+
+def public_path(path: StrPath) -> Path:
+    """``path`` with every hidden temporary component replaced by the name it is written
+    for: what a message names (``out/.fit.tmp-1-2-3/summary.json`` -> ``out/fit/summary.json``)."""
+    p = Path(path)
+    return Path(*[m["name"] if (m := _HIDDEN.fullmatch(part)) else part for part in p.parts])
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` is a full disk or an exhausted quota."""
+    return isinstance(exc, OSError) and exc.errno in DISK_FULL
+
+
+def write_error(exc: OSError, path: StrPath | None) -> InputError:
+    """The one-line error of a failed write of ``path`` (its final name, never a hidden
+    temporary one): ``no space left on device writing PATH`` for a full disk."""
+    where = None if path is None else public_path(os.fsdecode(path))
+    if is_disk_full(exc):
+        what = "no space left on device" if exc.errno == errno.ENOSPC else "disk quota exceeded"
+        return InputError(f"{what} writing {where if where is not None else 'the output'}")
+    return InputError(f"cannot write: {exc.strerror or exc}", path=where)
+
+
+def _owner_gone(match: re.Match[str]) -> bool:
+    """Whether the process that made a hidden entry has ended (False when unsure: another
+    host, or not POSIX, where signal 0 does not test a process)."""
+    if os.name != "posix" or match["host"] != _host():
+        return False
+    pid = int(match["pid"])
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # EPERM: alive, another user's
+        return False
+    return False
+
+
+def remove_stale_temporaries(folder: StrPath, name: str | None = None) -> list[Path]:
+    """Remove the hidden temporary entries in ``folder`` (those of ``name``, or all) left by
+    a killed process (see the module docstring); returns those removed or put back. Never
+    raises: what cannot be removed stays."""
+    root = Path(folder)
+    done: list[Path] = []
+    try:
+        entries = [e.name for e in os.scandir(root)]
+    except OSError:
+        return done
+    for entry in entries:
+        m = _HIDDEN.fullmatch(entry)
+        if m is None or (name is not None and m["name"] != name) or not _owner_gone(m):
+            continue
+        p, final = root / entry, root / m["name"]
+        with contextlib.suppress(OSError):
+            if m["tag"] == "old" and not os.path.lexists(final):
+                os.rename(p, final)  # killed between the two renames: the old output is back
+            elif p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            else:
+                os.unlink(p)
+            done.append(p)
+    return done
 
 
 def _make_parent(path: Path) -> None:
@@ -60,6 +147,8 @@ def _make_parent(path: Path) -> None:
         raise InputError(f"not a directory, cannot create {path.name!r} in it",
                          path=path.parent) from e
     except OSError as e:
+        if is_disk_full(e):
+            raise write_error(e, path) from e
         raise InputError(f"cannot create directory: {e.strerror or e}", path=path.parent) from e
 
 
@@ -90,12 +179,8 @@ def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:
         raise InputError("is a directory, cannot write a file there", path=p)
     _make_parent(p)
     tmp = _sibling(p, "tmp")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-    except OSError as e:
-        raise InputError(f"cannot write: {e.strerror or e}", path=p) from e
-    try:
-        with os.fdopen(fd, "wb") as f:
+    try:  # created inside the try: a signal right after still removes it
+        with open(tmp, "xb") as f:  # O_EXCL, 0o666 minus the umask
             f.write(data)
             f.flush()
             if fsync:
@@ -105,7 +190,7 @@ def write_bytes_atomic(path: StrPath, data: bytes, fsync: bool = True) -> Path:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(e, OSError):
-            raise InputError(f"cannot write: {e.strerror or e}", path=p) from e
+            raise write_error(e, p) from e
         raise
     return p
 
@@ -138,9 +223,14 @@ def _check_parent(path: Path) -> None:
                          path=parent)
 
 
+#: How a non-empty destination is to be replaced, for a caller of the Python API.
+OVERWRITE_HINT = "pass overwrite=True to replace it"
+
+
 def check_output_dir(path: StrPath, overwrite: bool = False,
                      may_replace: Callable[[Path], str | None] | None = None,
-                     overwrite_hint: str = "pass overwrite=True to replace it") -> None:
+                     overwrite_hint: str = OVERWRITE_HINT, *,
+                     appeared: bool = False) -> None:
     """Refuse ``path`` as the destination of :func:`atomic_output_dir` with the same rules.
 
     A missing path or an empty directory is fine; a symbolic link or anything that is not a
@@ -149,7 +239,8 @@ def check_output_dir(path: StrPath, overwrite: bool = False,
     non-empty directory (a command line says which option to use). Paths that cannot be
     inspected (permissions, symbolic-link loops) are refused too, as is a destination whose
     nearest existing ancestor is not a directory or is not writable (so the folder could
-    not be created or moved into place).
+    not be created or moved into place). ``appeared``: the check after the work, so a
+    non-empty directory there was made by another process meanwhile (the message says so).
 
     Raises:
         InputError: naming ``path``.
@@ -174,6 +265,9 @@ def check_output_dir(path: StrPath, overwrite: bool = False,
     if not non_empty:
         return
     if not overwrite:
+        if appeared:
+            raise InputError("another process wrote this output directory while this run was "
+                             f"working ({overwrite_hint})", path=p)
         raise InputError(f"output directory exists and is not empty ({overwrite_hint})", path=p)
     if may_replace is not None:
         try:
@@ -194,14 +288,15 @@ def _move_into_place(tmp: Path, path: Path) -> None:
         return
     old = _sibling(path, "old")
     try:
-        os.rename(path, old)
-    except OSError as e:
-        raise InputError(f"cannot move the old directory aside: {e.strerror or e}",
-                         path=path) from e
-    try:
+        try:
+            os.rename(path, old)
+        except OSError as e:
+            raise InputError(f"cannot move the old directory aside: {e.strerror or e}",
+                             path=path) from e
         os.rename(tmp, path)
-    except BaseException as e:
-        os.rename(old, path)  # put the old directory back
+    except BaseException as e:  # a signal too, whichever rename it came after
+        if os.path.lexists(old) and not os.path.lexists(path):
+            os.rename(old, path)  # put the old directory back
         if isinstance(e, OSError):
             raise InputError(f"cannot move output into place: {e.strerror or e}",
                              path=path) from e
@@ -214,7 +309,8 @@ def _move_into_place(tmp: Path, path: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_output_dir(path: StrPath, overwrite: bool = False,
-                      may_replace: Callable[[Path], str | None] | None = None) -> Iterator[Path]:
+                      may_replace: Callable[[Path], str | None] | None = None,
+                      overwrite_hint: str = OVERWRITE_HINT) -> Iterator[Path]:
     """Build a directory in a temporary sibling and move it to ``path`` on success.
 
     Usage::
@@ -232,27 +328,28 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
         may_replace: optional safety check called with an existing non-empty ``path`` when
             ``overwrite`` is true; returns ``None`` to allow replacing it or a reason
             (e.g. "contains files that are not part of a flight") to refuse.
+        overwrite_hint: ends the message refusing a non-empty directory (how to replace it).
 
     Yields:
-        The empty temporary directory ``.<name>.tmp-<random>`` next to ``path``. It is
-        renamed to ``path`` when the block exits normally and deleted when it raises.
+        The empty temporary directory ``.<name>.tmp-<pid>-<host>-<random>`` next to
+        ``path``. It is renamed to ``path`` when the block exits normally and deleted when it
+        raises. Stale temporaries of ``path`` left by killed processes are removed first.
     """
     p = Path(path)
-    check_output_dir(p, overwrite, may_replace)
+    remove_stale_temporaries(p.parent, p.name)
+    check_output_dir(p, overwrite, may_replace, overwrite_hint)
     _make_parent(p)
-    while True:
-        tmp = _sibling(p, "tmp")
+    tmp = _sibling(p, "tmp")  # unique: this process's pid and 48 random bits
+    try:  # created inside the try: a signal right after still removes it
         try:
             os.mkdir(tmp)  # 0o777 minus umask, unlike tempfile.mkdtemp's 0o700
-            break
-        except FileExistsError:  # pragma: no cover - 48 random bits
-            continue
         except OSError as e:
-            raise InputError(f"cannot create a temporary directory: {e.strerror or e}",
-                             path=p.parent) from e
-    try:
+            if is_disk_full(e):
+                raise write_error(e, p) from e
+            raise InputError(f"cannot create the output folder: {e.strerror or e}",
+                             path=p) from e
         yield tmp
-        check_output_dir(p, overwrite, may_replace)
+        check_output_dir(p, overwrite, may_replace, overwrite_hint, appeared=True)
         _move_into_place(tmp, p)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

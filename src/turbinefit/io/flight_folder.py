@@ -77,7 +77,14 @@ from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS, HeatmapStack
-from turbinefit.io.atomic import StrPath, atomic_output_dir, check_output_dir, write_text_atomic
+from turbinefit.io.atomic import (
+    OVERWRITE_HINT,
+    StrPath,
+    atomic_output_dir,
+    check_output_dir,
+    write_error,
+    write_text_atomic,
+)
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
 from turbinefit.io.heatmap_files import (
     CAMERA_FILE,
@@ -312,7 +319,7 @@ def _only_flight_entries(folder: Path) -> str | None:
 
 
 def check_flight_destination(folder: StrPath, overwrite: bool = False,
-                             overwrite_hint: str = "pass overwrite=True to replace it") -> None:
+                             overwrite_hint: str = OVERWRITE_HINT) -> None:
     """Raise the InputError :func:`write_flight` would raise for ``folder`` as destination
     (a file or symbolic link, a non-empty folder without ``overwrite``, a folder that is not
     a flight folder), before the flight to write exists. ``overwrite_hint`` ends the
@@ -333,7 +340,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  camera_name: str = "turbinefit",
                  extra_texts: Mapping[str, str] | None = None,
                  images: Iterable[NDArray[np.uint8]] | None = None,
-                 camera: PinholeCamera | None = None) -> Path:
+                 camera: PinholeCamera | None = None,
+                 overwrite_hint: str = OVERWRITE_HINT) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
@@ -360,6 +368,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             (maps at the photos' size). The flight's heat-maps may be smaller: then
             ``flight.camera`` must be ``camera`` scaled to them (:func:`scaled_camera`),
             so that reading the folder back gives the same flight.
+        overwrite_hint: ends the message refusing a non-empty folder.
 
     Returns:
         The folder written.
@@ -402,7 +411,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                              f"(allowed: {', '.join(sorted(FLIGHT_ENTRIES - _DATA_ENTRIES))})")
         texts[name] = text
 
-    with atomic_output_dir(root, overwrite=overwrite, may_replace=_only_flight_entries) as tmp:
+    with atomic_output_dir(root, overwrite=overwrite, may_replace=_only_flight_entries,
+                           overwrite_hint=overwrite_hint) as tmp:
         for name, text in texts.items():
             write_text_atomic(tmp / name, text, fsync=False)
         hm_dir = tmp / HEATMAP_DIR
@@ -416,8 +426,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                 with open(hm_dir / heatmap_filename(t), "wb") as f:
                     np.save(f, arr, allow_pickle=False)
             except OSError as e:
-                raise InputError(f"cannot write: {e.strerror or e}",
-                                 path=root / HEATMAP_DIR / heatmap_filename(t)) from e
+                raise write_error(e, root / HEATMAP_DIR / heatmap_filename(t)) from e
         if images is not None:
             _write_images(tmp / IMAGE_DIR, root / IMAGE_DIR, flight, images, photo_camera)
     return root

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import time
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +23,7 @@ import numpy as np
 from turbinefit.detect import DetectOptions, HeatmapDetector, overlay, unique_stems
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import reduced_size
+from turbinefit.io.atomic import write_error
 from turbinefit.io.images import (
     encode_png,
     image_size,
@@ -114,10 +116,13 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                     np.save(f, maps, allow_pickle=False)
                 (tmp / f"{p.stem}.png").write_bytes(picture)
             except OSError as e:
-                raise InputError(f"cannot write: {e.strerror or e}", path=out / p.stem) from e
+                raise write_error(e, out / p.stem) from e
 
-        # disable=None: no bar when stderr is not a terminal
-        for _ in tqdm(pool.map(detect, zip(paths, sizes, strict=True)), total=len(paths),
-                      desc="detecting", unit="img", disable=None if progress else True):
-            pass
+        # closing: on an exception (a signal) here, the running detections end before the
+        # temporary folder they write into is removed. disable=None: no bar when stderr is
+        # not a terminal
+        with closing(pool.map(detect, zip(paths, sizes, strict=True))) as done:
+            for _ in tqdm(done, total=len(paths), desc="detecting", unit="img",
+                          disable=None if progress else True):
+                pass
     return DetectReport(out, len(paths), time.perf_counter() - t0, pool.workers)

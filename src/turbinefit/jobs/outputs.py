@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from turbinefit.errors import InputError
-from turbinefit.io.atomic import atomic_output_dir, check_output_dir
+from turbinefit.io.atomic import atomic_output_dir, check_output_dir, is_disk_full, write_error
 
 #: How the command line asks for an existing non-empty output folder to be replaced.
 OVERWRITE_HINT = "use --overwrite"
@@ -64,8 +64,8 @@ class OutputKind:
     @contextmanager
     def writing(self, out_dir: Path, overwrite: bool) -> Iterator[Path]:
         """The temporary folder to fill; renamed to ``out_dir`` when the block succeeds."""
-        with atomic_output_dir(out_dir, overwrite=overwrite,
-                               may_replace=self.foreign_entry) as tmp:
+        with atomic_output_dir(out_dir, overwrite=overwrite, may_replace=self.foreign_entry,
+                               overwrite_hint=OVERWRITE_HINT) as tmp:
             yield tmp
 
 
@@ -91,7 +91,10 @@ def flight_inputs(flight_dir: Path, config_path: Path | None) -> list[Path]:
 
 
 def plot_error(exc: OSError, out_dir: Path) -> InputError:
-    """The error of a figure that could not be written (e.g. no space left)."""
+    """The error of a figure that could not be written (e.g. no space left: the line names
+    the figure, or the folder)."""
+    if is_disk_full(exc):
+        return write_error(exc, exc.filename or out_dir)
     return InputError(f"cannot write the plots: {exc.strerror or exc}", out_dir)
 
 

@@ -60,7 +60,7 @@ def simulate_folder(
                                       progress=progress)
     write_flight(flight, out, overwrite=overwrite,
                  extra_texts={SIMULATION_FILE: yaml.safe_dump(settings, sort_keys=False)},
-                 images=photos, camera=cfg.camera())
+                 images=photos, camera=cfg.camera(), overwrite_hint=OVERWRITE_HINT)
     return out
 
 

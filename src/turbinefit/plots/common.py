@@ -3,7 +3,8 @@
 Figures draw on a bare :class:`matplotlib.figure.Figure` with the Agg canvas (no pyplot, no
 global figure registry, works headless), import matplotlib only when called (so ``import
 turbinefit`` stays fast), create missing parent directories and write atomically
-(``<name>.tmp.png`` then :func:`os.replace`).
+(:func:`turbinefit.io.atomic.write_bytes_atomic`: a full disk is one error naming the figure,
+and a killed process leaves no partial ``.png``).
 """
 
 from __future__ import annotations
@@ -57,18 +58,16 @@ def new_figure(width: float, height: float) -> Figure:
 
 def save_png(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """Write ``fig`` to ``path`` as PNG atomically, then release the figure."""
-    out = Path(path)
-    if not out.parent.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".tmp.png")
+    import io
+
+    from turbinefit.io.atomic import write_bytes_atomic
+
+    png = io.BytesIO()
     try:
-        fig.savefig(tmp, format="png", dpi=DPI)
-        os.replace(tmp, out)
+        fig.savefig(png, format="png", dpi=DPI)
     finally:
-        if tmp.exists():
-            tmp.unlink()
         fig.clear()
-    return out
+    return write_bytes_atomic(path, png.getvalue(), fsync=False)
 
 
 def as_batch(poses: SE3 | None) -> SE3:

@@ -1,0 +1,134 @@
+"""How the ``turbinefit`` command ends on SIGINT, SIGTERM and SIGHUP: the same way for
+all three and every command.
+
+* **During start-up** (the imports before :func:`turbinefit.cli.main` runs), there is
+  nothing to clean up: :func:`exit_quietly_on_signals` makes each signal print one line and
+  end the process at once, so that an early Ctrl-C prints no traceback.
+* **While a command runs**, :class:`RaisingOnSignals` turns each signal into an
+  :class:`Interrupted` exception, raised in the main thread (signal handlers run only
+  there; the detector pool's threads and tqdm's monitor are waited for or are daemons), so
+  that the cleanup already written for Ctrl-C runs: ``atomic_output_dir`` removes its
+  temporary folder, the sweep kills its workers. A second signal during that cleanup is
+  ignored (SIGKILL still ends the process). ``main`` prints ``turbinefit: interrupted
+  (SIGTERM)`` and returns 128 + the signal number: 130, 143, 129.
+
+A signal whose disposition is "ignore" when the command starts (``nohup`` ignores SIGHUP, a
+non-interactive shell's background job ignores SIGINT) stays ignored.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+# Imported first of all by the command, so only what the interpreter has already loaded:
+# the C module of the signals (the ``signal`` module would load ``enum`` first, 30 ms).
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    import signal as _sig
+    from types import FrameType, TracebackType
+else:
+    try:
+        import _signal as _sig
+    except ImportError:  # pragma: no cover - not CPython
+        import signal as _sig
+
+#: The signals every command handles like Ctrl-C, and their names.
+NAMES: dict[int, str] = {int(getattr(_sig, name)): name for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                         if hasattr(_sig, name)}
+SIGNALS = tuple(NAMES)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A command was stopped by a signal. A ``KeyboardInterrupt`` so that everything that
+    cleans up after Ctrl-C (and lets ``except Exception`` pass it) does so for it too."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal_name(signum))
+        self.signum = signum
+
+    @property
+    def exit_status(self) -> int:
+        return exit_status(self.signum)
+
+
+def signal_name(signum: int) -> str:
+    return NAMES.get(signum, f"signal {signum}")
+
+
+def exit_status(signum: int) -> int:
+    """The shell's status of a process ended by ``signum``: 128 + its number."""
+    return 128 + signum
+
+
+def message(signum: int) -> str:
+    """The one line a command prints when a signal stops it."""
+    return f"turbinefit: interrupted ({signal_name(signum)})"
+
+
+def signal_of(exc: KeyboardInterrupt) -> int:
+    """The signal that raised ``exc``: its own, or SIGINT for a plain KeyboardInterrupt."""
+    return exc.signum if isinstance(exc, Interrupted) else int(_sig.SIGINT)
+
+
+def _exit_now(signum: int, frame: FrameType | None) -> None:
+    os.write(2, (message(signum) + "\n").encode())
+    os._exit(exit_status(signum))
+
+
+def _handled(sig: int) -> bool:
+    """Whether ``sig`` is not ignored (by the parent, ``nohup`` or ourselves)."""
+    return _sig.getsignal(sig) != _sig.SIG_IGN
+
+
+def started_as_command() -> bool:
+    """Whether this process is the ``turbinefit`` command (its script or ``python -m
+    turbinefit.cli``, whose ``argv[0]`` is ``-m`` while the package is imported), not a
+    program that imports the package."""
+    argv0 = (getattr(sys, "argv", None) or [""])[0]
+    return argv0 == "-m" or os.path.basename(argv0) in ("turbinefit", "turbinefit.exe")
+
+
+def exit_quietly_on_signals() -> None:
+    """Start-up: each handled signal prints its line and ends the process at once."""
+    if not started_as_command():
+        return
+    for sig in SIGNALS:
+        try:
+            if _handled(sig):
+                _sig.signal(sig, _exit_now)
+        except ValueError:  # pragma: no cover - not the main thread
+            return
+
+
+class RaisingOnSignals:
+    """While the ``with`` block runs, the first handled signal raises :class:`Interrupted`
+    in the main thread and later ones are ignored; the previous handlers are restored after
+    it. Outside the main thread (a caller's worker thread) this does nothing."""
+
+    def __init__(self) -> None:
+        self.caught: int | None = None
+        self.saved: dict[int, object] = {}
+
+    def _raise(self, signum: int, frame: FrameType | None) -> None:
+        if self.caught is not None:  # cleaning up after the first one: let it finish
+            return
+        self.caught = signum
+        raise Interrupted(signum)
+
+    def __enter__(self) -> RaisingOnSignals:
+        for sig in SIGNALS:
+            try:
+                previous = _sig.getsignal(sig)
+                if previous is None or previous == _sig.SIG_IGN:
+                    continue  # ignored, or set outside Python: leave it alone
+                _sig.signal(sig, self._raise)
+            except ValueError:  # not the main thread of the main interpreter
+                break
+            self.saved[sig] = previous
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        for sig, previous in self.saved.items():
+            _sig.signal(sig, previous)  # type: ignore[arg-type]
