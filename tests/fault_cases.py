@@ -326,6 +326,23 @@ def _cases() -> list[Case]:
         both(write("exp/sweep.yaml", "study: unary\n"), fifo("exp/rows.csv")), r"exp",
         hang=True)
     add("report-missing", cmd("report", "{w}/flight/nothing"), None, r"nothing")
+
+    # -- import: DJI photos, ROS bags
+    dji = ("import", "dji", "{w}/flight/dji", "--out", "{w}/out")
+    add("dji-not-jpeg", cmd("import", "dji", "{w}/flight/images/2.000000.png", "--out",
+                            "{w}/out"), None, PHOTO, r"JPEG")
+    add("dji-fifo", cmd("import", "dji", "{w}/flight/a.jpg", "--out", "{w}/out"),
+        fifo("a.jpg"), r"a\.jpg", r"named pipe", hang=True)
+    add("dji-fake-jpeg", cmd(*dji), write("dji/a.jpg", "not a photo"), r"dji/a\.jpg",
+        r"not a JPEG")
+    add("dji-no-photos", cmd(*dji), lambda f: (f / "dji").mkdir(), r"dji", r"no")
+    bag = ("import", "rosbag", "{w}/flight/b.bag", "--out", "{w}/out", "--image-topic", "/i",
+           "--odometry-topic", "/o")
+    add("rosbag-fifo", cmd(*bag), fifo("b.bag"), r"b\.bag", r"named pipe", hang=True)
+    add("rosbag-devzero", cmd(*bag), symlink("b.bag", "/dev/zero"), r"b\.bag",
+        r"character device")
+    add("rosbag-missing", cmd(*bag), None, r"b\.bag", r"not found")
+    add("rosbag-not-a-bag", cmd(*bag), write("b.bag", "not a bag"), r"b\.bag", r"ROS bag")
     return c
 
 

@@ -54,6 +54,8 @@ Flight folder (input of fit and track, output of simulate):
                               heatmaps/ is absent (or with --from-images)
   groundtruth.txt, turbine_groundtruth.yaml   optional ground truth
   simulation.yaml             written by simulate (its settings); not read by fit
+  georef.yaml                 optional WGS84 origin of an east-north-up world frame
+                              (written by import); fit and track then add WGS84 outputs
 
 Run 'turbinefit COMMAND --help' for a command's options.
 """

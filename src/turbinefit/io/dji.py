@@ -146,8 +146,10 @@ def read_dji_photo(path: Path) -> DjiPhoto:
     """
     from PIL import Image, UnidentifiedImageError
 
+    from turbinefit.io.limits import open_input
+
     try:
-        with Image.open(path) as im, warnings.catch_warnings():
+        with open_input(path) as f, Image.open(f) as im, warnings.catch_warnings():
             warnings.simplefilter("ignore")  # e.g. Pillow's "corrupt EXIF" warnings
             if im.format != "JPEG":
                 raise InputError(f"not a JPEG photo ({im.format or 'unknown'} image)", path=path)

@@ -75,6 +75,19 @@ def stamp_text(t_ns: int) -> str:
     return f"{t_ns // 1_000_000_000}.{t_ns % 1_000_000_000:09d}"
 
 
+def _check_bag_files(path: Path) -> None:
+    """Refuse a bag that is missing or that is (or holds) a FIFO, device or socket rather
+    than regular files (:mod:`turbinefit.io.limits`), before a reader opens and blocks."""
+    from turbinefit.io.limits import check_input_file
+
+    if not path.is_dir():
+        check_input_file(path, missing="bag not found")
+        return
+    for entry in sorted(path.iterdir()):
+        if entry.name == "metadata.yaml" or entry.suffix in (".db3", ".mcap", ".zstd"):
+            check_input_file(entry)
+
+
 class Bag:
     """An open ROS bag (a context manager): its topics, and its messages topic by topic."""
 
@@ -85,8 +98,7 @@ class Bag:
         except ImportError:
             raise TurbinefitError(ROS_HINT) from None
         self.path = path
-        if not path.exists():
-            raise InputError("bag not found", path=path)
+        _check_bag_files(path)
         try:
             self._reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
             self._reader.open()

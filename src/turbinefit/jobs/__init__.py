@@ -5,6 +5,8 @@
 * :mod:`turbinefit.jobs.track` -- :func:`track_folder`
 * :mod:`turbinefit.jobs.detect` -- :func:`detect_images`
 * :mod:`turbinefit.jobs.evaluate` -- :func:`evaluate_labels`
+* :mod:`turbinefit.jobs.import_dji` -- :func:`import_dji` (DJI photos to a flight folder)
+* :mod:`turbinefit.jobs.import_rosbag` -- :func:`import_rosbag` (a ROS bag to a flight folder)
 
 Shared: :mod:`turbinefit.jobs.sources` (where a flight's heat-maps come from: files or
 photos) and :mod:`turbinefit.jobs.outputs` (the output-folder rules). Each job writes its
@@ -27,6 +29,11 @@ if TYPE_CHECKING:
     from turbinefit.jobs.fit import FitReport as FitReport
     from turbinefit.jobs.fit import FitSummary as FitSummary
     from turbinefit.jobs.fit import fit_folder as fit_folder
+    from turbinefit.jobs.import_dji import DjiImportSummary as DjiImportSummary
+    from turbinefit.jobs.import_dji import import_dji as import_dji
+    from turbinefit.jobs.import_rosbag import RosbagOptions as RosbagOptions
+    from turbinefit.jobs.import_rosbag import RosbagSummary as RosbagSummary
+    from turbinefit.jobs.import_rosbag import import_rosbag as import_rosbag
     from turbinefit.jobs.simulate import simulate_folder as simulate_folder
     from turbinefit.jobs.track import TrackReport as TrackReport
     from turbinefit.jobs.track import TrackSummary as TrackSummary
@@ -38,6 +45,8 @@ _WHERE = {name: f"turbinefit.jobs.{module}" for module, names in {
     "track": ("track_folder", "TrackReport", "TrackSummary"),
     "detect": ("detect_images", "DetectReport"),
     "evaluate": ("evaluate_labels", "EvaluateReport"),
+    "import_dji": ("import_dji", "DjiImportSummary"),
+    "import_rosbag": ("import_rosbag", "RosbagOptions", "RosbagSummary"),
 }.items() for name in names}
 
 __all__ = sorted(_WHERE)
