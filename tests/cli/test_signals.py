@@ -83,10 +83,22 @@ def test_a_signal_while_writing_removes_the_temporary_folder(
         command: str, sig: int, sim_flight_dir: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
     proc = start(command, str(sim_flight_dir), "--out", str(out), "--quiet")
-    wait_for(proc, lambda: bool(temporaries(out)), "temporary output folder")  # the plots
+    wait_for(proc, lambda: any(".tmp-" in p.name for p in temporaries(out)),
+             "temporary output folder")  # the plots
     proc.send_signal(sig)
     assert_interrupted(proc, sig)
     assert entries(tmp_path) == []  # neither the output nor its temporary folder
+
+
+def test_a_signal_while_fitting_ends_the_reservation_of_the_output(
+        sim_flight_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = start("fit", str(sim_flight_dir), "--out", str(out), "--quiet")
+    wait_for(proc, lambda: any(".lock-" in p.name for p in temporaries(out)),
+             "reservation of the output")  # checked and reserved, before any writing
+    proc.send_signal(signal.SIGTERM)
+    assert_interrupted(proc, signal.SIGTERM)
+    assert entries(tmp_path) == []
 
 
 def test_ctrl_c_at_start_up_prints_one_line(tmp_path: Path) -> None:
@@ -165,15 +177,25 @@ def test_the_next_run_removes_the_temporary_folder_of_a_killed_one(
              "keyframes written")
     proc.kill()  # SIGKILL: nothing can clean up
     proc.communicate(timeout=TIMEOUT_S)
-    left = temporaries(out)
-    assert len(left) == 1 and str(proc.pid) in left[0].name
-    # a live run's temporary folder, by contrast, is never touched
-    live = out.parent / f".{out.name}.tmp-{os.getpid()}-{left[0].name.split('-')[2]}-{'0' * 12}"
+    left = temporaries(out)  # its temporary folder and its reservation of the output
+    assert sorted(p.name.split("-")[0] for p in left) == [".out.lock", ".out.tmp"]
+    assert all(str(proc.pid) in p.name for p in left)
+    # a live run's temporary folder, by contrast, is never touched: a run into the same
+    # output is refused at once while it lives
+    host = left[0].name.split('-')[2]
+    live = out.parent / f".{out.name}.tmp-{os.getpid()}-{host}-{'0' * 12}"
     live.mkdir()
-    rerun = subprocess.run([sys.executable, "-m", "turbinefit.cli", "fit", str(sim_flight_dir),
-                            "--out", str(out), "--quiet", "--no-plots", "--max-iterations", "1"],
-                           capture_output=True, text=True, timeout=TIMEOUT_S)
+    argv = [sys.executable, "-m", "turbinefit.cli", "fit", str(sim_flight_dir), "--out",
+            str(out), "--quiet", "--no-plots", "--max-iterations", "1"]
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S)
+    assert rerun.returncode == 2
+    assert rerun.stderr == (f"turbinefit: error: {out}: another turbinefit run (process "
+                            f"{os.getpid()}) is writing this output folder now; wait for it "
+                            "to end or choose another output\n")
+    assert sorted(temporaries(out)) == sorted([*left, live])
+    live.rmdir()  # that run ended
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert rerun.returncode == 0, rerun.stderr
-    assert temporaries(out) == [live]
+    assert temporaries(out) == []
     assert sorted(entries(out)) == ["config.yaml", "keyframes.txt", "summary.json",
                                     "turbine.yaml"]

@@ -156,7 +156,7 @@ def test_stale_temporaries_of_dead_processes_are_removed(tmp_path: Path) -> None
     (stale / "keyframes.txt").write_text("valid looking\n")
     stale_file = _hidden(tmp_path / "report.md", "tmp", dead)
     stale_file.write_text("half")
-    live = _hidden(out, "tmp", os.getppid())  # a live process: another run, still working
+    live = _hidden(tmp_path / "other", "tmp", os.getppid())  # a live process: another run
     live.mkdir()
     elsewhere = _hidden(out, "tmp", dead, host="0badc0de")  # a shared folder: not ours to judge
     elsewhere.mkdir()
@@ -165,11 +165,36 @@ def test_stale_temporaries_of_dead_processes_are_removed(tmp_path: Path) -> None
     with atomic_output_dir(out) as tmp:
         (tmp / "a.txt").write_text("a")
     assert leftovers(tmp_path) == sorted(p.name for p in (elsewhere, live, other, stale_file))
+    assert not any(".lock-" in name for name in leftovers(tmp_path))  # the reservation ended
     # the sweep folder's own files: all stale ones at once
     from turbinefit.io.atomic import remove_stale_temporaries
 
     assert sorted(remove_stale_temporaries(tmp_path)) == sorted([other, stale_file])
     assert leftovers(tmp_path) == sorted(p.name for p in (elsewhere, live))
+
+
+@pytest.mark.skipif(os.name != "posix", reason="liveness of a pid is tested on POSIX")
+@pytest.mark.parametrize("tag", ["tmp", "lock"])
+def test_a_second_run_into_an_output_being_written_is_refused_at_once(tmp_path: Path,
+                                                                      tag: str) -> None:
+    from turbinefit.io.atomic import release_output, reserve_output
+
+    out = tmp_path / "out"
+    live = _hidden(out, tag, os.getppid())  # another live run, writing or still working
+    live.mkdir() if tag == "tmp" else live.write_text("")
+    with pytest.raises(InputError, match=rf"out: another turbinefit run \(process "
+                                         rf"{os.getppid()}\) is writing this output folder"):
+        reserve_output(out)
+    with pytest.raises(InputError, match="another turbinefit run"):
+        with atomic_output_dir(out):
+            pass
+    assert leftovers(tmp_path) == [live.name] and not out.exists()
+    live.rename(_hidden(out, tag, _dead_pid()))  # that run was killed: no longer in the way
+    reserve_output(out)
+    mine = f".lock-{os.getpid()}-"
+    assert sum(mine in name for name in leftovers(tmp_path)) == 1
+    release_output(out)
+    assert sum(mine in name for name in leftovers(tmp_path)) == 0
 
 
 @pytest.mark.skipif(os.name != "posix", reason="liveness of a pid is tested on POSIX")

@@ -119,3 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             signum = signals.signal_of(exc)
             print(signals.message(signum), file=sys.stderr)
             return signals.exit_status(signum)
+        finally:  # a job that failed before writing still holds its output's reservation
+            atomic = sys.modules.get("turbinefit.io.atomic")
+            if atomic is not None:
+                atomic.release_all_outputs()

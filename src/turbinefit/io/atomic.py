@@ -23,6 +23,10 @@ Nothing here knows about file formats; the writers in :mod:`turbinefit.io` use i
   the two renames). Entries of a live process, or of another host, are never touched.
 * A full disk (or quota) is one line naming the final path, never the hidden temporary one
   (:func:`write_error`, :func:`public_path`).
+* :func:`reserve_output` marks a destination as being produced by this process, with an
+  empty ``.<name>.lock-<pid>-<host>-<random>`` beside it, from the job's first check until
+  its :func:`atomic_output_dir` ends (or the process exits): a second run into the same
+  place, on this host, is refused at once instead of after all its work.
 
 Directory writes are atomic with respect to other processes and to exceptions; files inside
 the temporary directory are not individually ``fsync``-ed (writing thousands of heat-maps
@@ -59,8 +63,9 @@ StrPath = str | os.PathLike[str]
 
 #: The errors of a full disk or an exhausted quota.
 DISK_FULL = frozenset({errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)})
-#: A hidden temporary (``tmp``) or replaced (``old``) entry: name, tag, owner's pid and host.
-_HIDDEN = re.compile(r"\.(?P<name>.+)\.(?P<tag>tmp|old)-(?P<pid>\d+)-(?P<host>[0-9a-f]{8})"
+#: A hidden temporary (``tmp``), replaced (``old``) or reserving (``lock``) entry: name, tag,
+#: owner's pid and host.
+_HIDDEN = re.compile(r"\.(?P<name>.+)\.(?P<tag>tmp|old|lock)-(?P<pid>\d+)-(?P<host>[0-9a-f]{8})"
                      r"-[0-9a-f]{12}")
 
 
@@ -138,6 +143,67 @@ def remove_stale_temporaries(folder: StrPath, name: str | None = None) -> list[P
                 os.unlink(p)
             done.append(p)
     return done
+
+
+#: This process's reservations: destination -> its lock file.
+_RESERVED: dict[Path, Path] = {}
+
+
+def _live_owner(folder: Path, name: str) -> int | None:
+    """The pid of another live process of this host that is writing ``folder/name`` (a
+    temporary or reserving entry of it), or None."""
+    try:
+        entries = [e.name for e in os.scandir(folder)]
+    except OSError:
+        return None
+    for entry in entries:
+        m = _HIDDEN.fullmatch(entry)
+        if (m is not None and m["name"] == name and m["tag"] in ("tmp", "lock")
+                and m["host"] == _host() and int(m["pid"]) != os.getpid()
+                and not _owner_gone(m)):
+            return int(m["pid"])
+    return None
+
+
+def reserve_output(path: StrPath) -> None:
+    """Reserve ``path`` for this process (module docstring); nothing if it already holds it
+    or if the parent folder does not exist yet (nobody else can be writing there).
+
+    Raises:
+        InputError: if another live process of this host is producing ``path``.
+    """
+    p = Path(os.path.abspath(path))
+    if p in _RESERVED or not p.parent.is_dir():
+        return
+    lock = _sibling(p, "lock")
+    try:
+        os.close(os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    except OSError:
+        return  # a folder we may not write to: check_output_dir says so
+    _RESERVED[p] = lock
+    if len(_RESERVED) == 1:
+        import atexit
+
+        atexit.register(release_all_outputs)
+    pid = _live_owner(p.parent, p.name)
+    if pid is not None:
+        release_output(p)
+        raise InputError(f"another turbinefit run (process {pid}) is writing this output "
+                         "folder now; wait for it to end or choose another output", path=p)
+
+
+def release_output(path: StrPath) -> None:
+    """End this process's reservation of ``path`` (nothing if it holds none)."""
+    lock = _RESERVED.pop(Path(os.path.abspath(path)), None)
+    if lock is not None:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+
+
+def release_all_outputs() -> None:
+    """End every reservation of this process (at exit, and when a command ends)."""
+    for p in list(_RESERVED):
+        release_output(p)
 
 
 def _make_parent(path: Path) -> None:
@@ -341,6 +407,7 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
     _make_parent(p)
     tmp = _sibling(p, "tmp")  # unique: this process's pid and 48 random bits
     try:  # created inside the try: a signal right after still removes it
+        reserve_output(p)
         try:
             os.mkdir(tmp)  # 0o777 minus umask, unlike tempfile.mkdtemp's 0o700
         except OSError as e:
@@ -354,3 +421,5 @@ def atomic_output_dir(path: StrPath, overwrite: bool = False,
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    finally:
+        release_output(p)

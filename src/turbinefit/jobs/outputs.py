@@ -26,7 +26,13 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from turbinefit.errors import InputError
-from turbinefit.io.atomic import atomic_output_dir, check_output_dir, is_disk_full, write_error
+from turbinefit.io.atomic import (
+    atomic_output_dir,
+    check_output_dir,
+    is_disk_full,
+    reserve_output,
+    write_error,
+)
 
 #: How the command line asks for an existing non-empty output folder to be replaced.
 OVERWRITE_HINT = "use --overwrite"
@@ -57,9 +63,12 @@ class OutputKind:
         return None
 
     def check(self, out_dir: Path, inputs: Iterable[Path], overwrite: bool) -> None:
-        """Refuse ``out_dir`` before any work (see the module docstring)."""
+        """Refuse ``out_dir`` before any work (see the module docstring), and reserve it
+        (:func:`~turbinefit.io.atomic.reserve_output`: a second run into it is refused
+        until this one's :meth:`writing` ends)."""
         check_not_input(out_dir, inputs)
         check_output_dir(out_dir, overwrite, self.foreign_entry, OVERWRITE_HINT)
+        reserve_output(out_dir)
 
     @contextmanager
     def writing(self, out_dir: Path, overwrite: bool) -> Iterator[Path]:
