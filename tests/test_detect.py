@@ -15,6 +15,7 @@ from turbinefit.detect import (
     DetectorPool,
     HeatmapDetector,
     default_model_path,
+    letterbox,
     model_input_size,
     shift_tips,
 )
@@ -55,6 +56,53 @@ def test_model_input_size_keeps_the_aspect_and_the_output_scale() -> None:
     assert model_input_size(4000, 3000, two) == (320, 240)
     assert model_input_size(3000, 2000, two) == (320, 214)  # height a multiple of 2
     assert model_input_size(4000, 10, two) == (320, 2)
+    # taller than 4:3: as high as the input (letterboxed into it)
+    assert model_input_size(1024, 1024, two) == (240, 240)
+    assert model_input_size(3000, 4000, two) == (180, 240)
+    assert model_input_size(1024, 1024, one) == (120, 120)
+
+
+def test_letterbox_centres_the_photo_in_the_4_3_input() -> None:
+    info = ModelInfo(input_width=320, input_height=240, stride=32, output_scale=2)
+    photo = np.random.default_rng(0).integers(0, 255, (240, 320, 3), dtype=np.uint8)
+    x, left, top = letterbox(photo, info)  # a 4:3 photo: only padded to the stride
+    assert (left, top) == (0, 0) and x.shape == (256, 320, 3)
+    assert np.array_equal(x[:240], photo) and np.array_equal(x[240:], np.repeat(photo[-1:], 16, 0))
+    square = photo[:, :240]
+    x, left, top = letterbox(square, info)
+    assert (left, top) == (40, 0) and x.shape == (256, 320, 3)
+    assert np.array_equal(x[:240, 40:280], square)
+    assert np.array_equal(x[:240, 39], square[:, 1])  # reflected, not repeated
+    wide = photo[:180]
+    x, left, top = letterbox(wide, info)
+    assert (left, top) == (0, 30) and np.array_equal(x[30:210], wide)
+
+
+@pytest.mark.parametrize("size", [(160, 160), (160, 106), (160, 90), (120, 160)])
+def test_maps_of_any_shape_have_no_border_artefact(detector: HeatmapDetector,
+                                                   size: tuple[int, int]) -> None:
+    """Renders that are square, 3:2, 16:9 and portrait: the line channels answer on the
+    turbine (most of their mass on its lines) and not along the bottom edge (a square
+    photo fed at its own shape had the bottom rows answer at 8x the whole map's mean)."""
+    from scipy import ndimage
+
+    from turbinefit.eval.regions import bottom_rows, line_mass_inside
+    from turbinefit.sim.dataset import DatasetSpec, render_sample
+
+    w, h = size
+    spec = DatasetSpec(3, seed=777, width=w, height=h)
+    inside, bottom, whole = [], [], []
+    for k in range(3):
+        s = render_sample(spec, k)
+        maps = detector.detect(s.image, (w, h))
+        assert maps.shape == (7, h, w)
+        region = ndimage.binary_dilation(s.target[4:].max(axis=0) > 0.05, iterations=2)
+        inside.append(line_mass_inside(maps, region))
+        b, a = bottom_rows(maps, max(1, round(h / 25)))
+        bottom.append(b)
+        whole.append(a)
+    assert np.mean(inside) > 0.85
+    assert np.mean(bottom) < 2.0 * np.mean(whole)
 
 
 def test_detect_output_has_the_photo_size(detector: HeatmapDetector, held_out_samples: list) -> None:

@@ -6,9 +6,12 @@ runs one single-threaded detector per core on as many photos at once: the same m
 faster for many photos):
 
 1. the photo is resized (bilinear, antialiased; :func:`turbinefit.io.images.resize_image`)
-   to the model's input width (``input_width`` of the model's metadata, 320 px for the
-   shipped model) with the height following the photo's aspect ratio, then padded by edge
-   replication to a multiple of the model's stride;
+   to fit the model's 4:3 input (``input_width`` x ``input_height`` of the model's
+   metadata, 320 x 240 for the shipped model) keeping its aspect ratio
+   (:func:`model_input_size`), set in the middle of that input with the margins filled by
+   reflection (:func:`letterbox`: a square, 3:2, 16:9 or portrait photo is seen in the
+   frame the net was trained on, with no border artefacts; the maps are cut back to the
+   photo), then padded by edge replication to a multiple of the model's stride;
 2. the model gives seven heat-maps in [0, 1] (a sigmoid ends the graph), channel order of
    :data:`turbinefit.heatmaps.CHANNEL_NAMES`, at ``1 / output_scale`` of its input size
    (the shipped model: 160 x 120 maps of a 320 x 240 input); for a model whose metadata
@@ -140,11 +143,34 @@ def default_model_path() -> Path:
 
 
 def model_input_size(width: int, height: int, info: ModelInfo) -> tuple[int, int]:
-    """(width, height) a ``width`` x ``height`` photo is resized to for the model (the
-    height a multiple of ``output_scale``, nearest the photo's aspect ratio)."""
-    w, s = info.input_width, info.output_scale
-    h = s * max(1, round(w * height / width / s))
-    return w, h
+    """(width, height) a ``width`` x ``height`` photo is resized to for the model: the
+    largest that fits in the model's 4:3 input (``input_width`` x ``input_height``, 320 x
+    240 for the shipped model) keeping the photo's aspect ratio, both sides multiples of
+    ``output_scale`` (:func:`letterbox` pads it to the whole input)."""
+    cw, ch, s = info.input_width, info.input_height, info.output_scale
+    if width * ch >= height * cw:  # as wide as the input, or wider
+        return cw, min(ch, s * max(1, round(cw * height / width / s)))
+    return min(cw, s * max(1, round(ch * width / height / s))), ch
+
+
+def letterbox(small: NDArray[np.uint8], info: ModelInfo) -> tuple[NDArray[np.uint8], int, int]:
+    """(input, left, top): a photo resized by :func:`model_input_size` placed in the
+    middle of the model's 4:3 input (``left`` and ``top`` [px] multiples of
+    ``output_scale``), the margins filled by reflecting the photo, then padded on the
+    right and bottom by edge replication to multiples of the model's stride.
+
+    The net was trained on 4:3 renders of its input size only; a photo of another shape
+    fed at its own shape (a square one as 320 x 320) made its line channels answer along
+    the bottom edge of every photo (real square photos: the bottom rows' mean 4-7 times
+    the whole map's; docs/cnn.md). A 4:3 photo is not changed by this."""
+    h, w = small.shape[:2]
+    s, st = info.output_scale, info.stride
+    cw, ch = max(w, info.input_width), max(h, info.input_height)
+    left, top = (cw - w) // 2 // s * s, (ch - h) // 2 // s * s
+    pad = [(top, ch - h - top), (left, cw - w - left), (0, 0)]
+    canvas = np.pad(small, pad, mode="reflect") if (cw, ch) != (w, h) else small
+    stride_pad = ((0, -ch % st), (0, -cw % st), (0, 0))
+    return np.pad(canvas, stride_pad, mode="edge"), left, top
 
 
 @dataclass(frozen=True)
@@ -255,13 +281,13 @@ class HeatmapDetector:
         h, w = image.shape[:2]
         mw, mh = model_input_size(w, h, self.info)
         small = resize_image(image, mw, mh, box)
-        st = self.info.stride
-        pad = ((0, math.ceil(mh / st) * st - mh), (0, math.ceil(mw / st) * st - mw), (0, 0))
         views = [small, small[:, ::-1]] if flip else [small]  # padded after mirroring
-        batch = np.stack([np.pad(v, pad, mode="edge") for v in views])
+        boxed = [letterbox(v, self.info) for v in views]
+        batch = np.stack([b[0] for b in boxed])
         x = batch.transpose(0, 3, 1, 2).astype(np.float32) * np.float32(1.0 / 255.0)
         s = self.info.output_scale
-        out = self.session.run(None, {self._input: x})[0][:, :, :mh // s, :mw // s]
+        j0, i0 = boxed[0][1] // s, boxed[0][2] // s
+        out = self.session.run(None, {self._input: x})[0][:, :, i0:i0 + mh // s, j0:j0 + mw // s]
         maps = np.ascontiguousarray(0.5 * (out[0] + out[1][:, :, ::-1]) if flip else out[0],
                                     dtype=np.float32)
         if self.tip_shift:

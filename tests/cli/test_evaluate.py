@@ -4,11 +4,12 @@ keypoints, and bad input."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
-from support import photo_px
+from support import assert_one_line_error, assert_valid_png, photo_px, run
 
 from turbinefit.cli import main
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints
@@ -102,3 +103,90 @@ def test_evaluate_bad_input_is_one_clear_error(labelled: Path, tmp_path: Path, b
     assert labels.read_text() == before  # the input is untouched
     if bad != "out_is_input":
         assert not report.exists()
+
+
+@pytest.fixture(scope="module")
+def boxed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two rendered 320x240 photos with a box round each turbine's heat-map targets
+    (CSV and COCO) and masks of them."""
+    root = tmp_path_factory.mktemp("boxed")
+    spec = DatasetSpec(20, seed=12)
+    rows, coco_images, coco_anns = [], [], []
+    (root / "masks").mkdir()
+    for i in range(20):
+        s = render_sample(spec, i)
+        on = s.target.max(axis=0) > 0.05
+        if on.sum() < 200:
+            continue
+        ii, jj = np.nonzero(on)
+        box = (2 * jj.min(), 2 * ii.min(), 2 * jj.max() + 2, 2 * ii.max() + 2)
+        name = f"p{i}.png"
+        write_png(root / name, s.image)
+        big = np.repeat(np.repeat(on, 2, axis=0), 2, axis=1)
+        write_png(root / "masks" / name, np.repeat(big[..., None] * 255, 3, axis=2).astype(np.uint8))
+        rows.append(f"{name},320,240,turbine,{box[0]},{box[1]},{box[2]},{box[3]}")
+        coco_images.append({"id": len(coco_images) + 1, "file_name": name, "width": 320,
+                            "height": 240})
+        coco_anns.append({"id": len(coco_anns) + 1, "image_id": len(coco_images),
+                          "category_id": 1, "bbox": [int(box[0]), int(box[1]),
+                                                     int(box[2] - box[0]), int(box[3] - box[1])]})
+        if len(rows) == 2:
+            break
+    (root / "boxes.csv").write_text("\n".join(rows) + "\n")
+    (root / "boxes.json").write_text(json.dumps({
+        "images": coco_images, "annotations": coco_anns,
+        "categories": [{"id": 1, "name": "turbine"}]}))
+    return root
+
+
+@pytest.mark.parametrize("labels", ["boxes.csv", "boxes.json", "masks"])
+def test_evaluate_boxes_and_masks(boxed: Path, labels: str, tmp_path: Path,
+                                  capsys: pytest.CaptureFixture[str]) -> None:
+    report, sheet = tmp_path / "r.json", tmp_path / "worst.png"
+    opt = "--masks" if labels == "masks" else "--boxes"
+    assert main(["evaluate", opt, str(boxed / labels), "--images-dir", str(boxed), "--quiet",
+                 "--out", str(report), "--sheet", str(sheet), "--worst", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "2 photo(s)" in out and "turbine" in out
+    m = json.loads(report.read_text())["metrics"]
+    assert m["overall"]["photos"] == 2 and m["turbine"]["found"] == 1.0
+    assert m["turbine"]["line_mass_inside"] > 0.8  # the shipped net on its own renders
+    if labels == "masks":
+        assert m["turbine"]["skeleton_covered"] > 0.5
+    else:
+        assert m["turbine"]["skeleton_covered"] is None
+    assert assert_valid_png(sheet)[0] == 2 * 320
+
+
+@pytest.mark.parametrize("case, words", [
+    ("header", ["boxes.csv:1", "unknown columns"]),
+    ("outside", ["boxes.csv:2", "outside its 320x240 image"]),
+    ("missing", ["boxes.csv:2", "photo not found"]),
+    ("size", ["boxes.csv:1", "is 320x240 but the label is 640x480"]),
+    ("mask", ["masks/p", "the mask is 40x30"]),
+])
+def test_evaluate_regions_bad_input(boxed: Path, tmp_path: Path, case: str, words: list[str],
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    lines = (boxed / "boxes.csv").read_text().splitlines()
+    bad = tmp_path / "boxes.csv"
+    opt, labels = "--boxes", str(bad)
+    if case == "header":
+        lines.insert(0, "file,w,h,label,x0,y0,x1,y1")
+    elif case == "outside":
+        lines[1] = ",".join([*lines[1].split(",")[:6], "321", "200"])
+    elif case == "missing":
+        lines[1] = "gone.png" + lines[1][lines[1].index(","):]
+    elif case == "size":
+        lines[0] = lines[0].replace("320,240", "640,480")
+    else:
+        masks = tmp_path / "masks"
+        masks.mkdir()
+        for p in (boxed / "masks").iterdir():
+            write_png(masks / p.name, np.zeros((30, 40, 3), np.uint8))
+        opt, labels = "--masks", str(masks)
+    bad.write_text("\n".join(lines) + "\n")
+    report = tmp_path / "r.json"
+    rc, out, err = run(capsys, "evaluate", opt, labels, "--images-dir", str(boxed), "--quiet",
+                       "--out", str(report))
+    assert_one_line_error(rc, out, err, *map(re.escape, words))
+    assert not report.exists()

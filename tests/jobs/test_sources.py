@@ -65,3 +65,34 @@ def test_jpeg_photos_are_decoded_at_the_detector_width(tmp_path: Path,
     with pytest.raises(InputError, match=r"0\.000000\.jpg: photo is 640x480 but camera.yaml "
                        r"is 1280x960"):
         PhotoHeatmaps(read_flight_folder(flight), threads=1)
+
+
+def test_fit_from_photos_draws_its_reprojections_over_the_photos(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fit --from-images``: the reprojection figure is drawn over the keyframes' photos
+    (:func:`source_photos`), at most 640 px wide; heat-map files give no photos."""
+    import numpy as np
+
+    from turbinefit import plots
+    from turbinefit.io.flight_folder import read_flight_folder
+    from turbinefit.jobs.sources import FileHeatmaps, PhotoHeatmaps, source_photos
+
+    flight = tmp_path / "f"
+    assert main(["simulate", str(flight), "--keyframes", "6", "--seed", "2", "--width", "800",
+                 "--height", "600", "--images", "--quiet"]) == 0
+    folder = read_flight_folder(flight)
+    photo = source_photos(PhotoHeatmaps(folder, threads=1))
+    assert photo is not None and photo(2).shape == (480, 640, 3)
+    assert source_photos(FileHeatmaps(folder)) is None
+    drawn: list[np.ndarray] = []
+    real = plots.plot_reprojections
+
+    def spy(*args, **kw):  # type: ignore[no-untyped-def]
+        assert kw["photo"] is not None
+        drawn.extend(kw["photo"](k) for k in kw["keyframes"])
+        return real(*args, **kw)
+
+    monkeypatch.setattr(plots, "plot_reprojections", spy)
+    assert main(["fit", str(flight), "--out", str(tmp_path / "fit"), "--from-images"]) in (0, 3)
+    assert drawn and all(d.shape == (480, 640, 3) for d in drawn)
+    assert (tmp_path / "fit" / "reprojections.png").stat().st_size > 0

@@ -183,3 +183,24 @@ def test_plot_cost_history(tmp_path):
     assert_png(plot_cost_history(tmp_path / "cost_stages.png", costs, stages), 800, 500)
     with pytest.raises(ValueError, match="stage names"):
         plot_cost_history(tmp_path / "bad.png", costs, stages[:-1])
+
+
+def test_plot_reprojections_over_photos(tmp_path, flight):
+    """With ``photo``, each panel shows the keyframe's photo (any size, stretched), the
+    heat-maps faint on top, the models over both."""
+    asked = []
+
+    def photo(k):
+        asked.append(k)
+        return np.full((60, 80, 3), (150, 90, 200), dtype=np.uint8)  # a lilac photo
+
+    kfs = [0, 3]
+    out = plot_reprojections(
+        tmp_path / "photos.png", camera=CAMERA, heatmaps=flight["heatmaps"], keyframes=kfs,
+        initial_poses=flight["initial"], initial_turbine=INITIAL,
+        optimised_poses=flight["optimised"], optimised_turbine=OPTIMISED, photo=photo)
+    rgb = assert_png(out)[..., :3]
+    assert asked == kfs
+    lilac = np.all(np.abs(rgb - np.array([150, 90, 200]) / 255) < 0.03, axis=-1)
+    assert lilac.mean() > 0.2  # the photo fills the panels where the maps are dark
+    assert np.any((rgb[..., 1] > 0.8) & (rgb[..., 0] < 0.4) & (rgb[..., 2] < 0.3))  # the model

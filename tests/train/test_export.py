@@ -12,8 +12,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnx")
-from turbinefit.detect import HeatmapDetector  # noqa: E402
+from turbinefit.detect import HeatmapDetector, letterbox  # noqa: E402
 from turbinefit.heatmaps.model_info import ModelInfo  # noqa: E402
+from turbinefit.io.images import resize_image  # noqa: E402
 from turbinefit.train.export import export_onnx  # noqa: E402
 from turbinefit.train.net import HeatmapNet  # noqa: E402
 from turbinefit.train.trainer import forward  # noqa: E402
@@ -46,17 +47,24 @@ def test_onnx_output_equals_pytorch(tmp_path: Path, scale: int, flip: bool) -> N
     det = HeatmapDetector(path, threads=1)
     assert det.info == info
     rng = np.random.default_rng(0)
-    for h, w in ((120, 160), (96, 160), (160, 160)):  # height follows the photo's aspect
+    # a 4:3 photo fills the input; others are letterboxed into it (maps cut back)
+    for h, w, mh, mw in ((120, 160, 120, 160), (96, 160, 96, 160), (160, 160, 120, 120)):
         img = rng.integers(0, 256, size=(h * scale, w * scale, 3), dtype=np.uint8)
         got = det.detect_small(img)
-        x = torch.from_numpy(img.transpose(2, 0, 1).copy()).float()[None] / 255
-        with torch.no_grad():
-            ref = torch.sigmoid(forward(net, x))[0].numpy()
-            mirrored = torch.sigmoid(forward(net, x.flip(-1))).flip(-1)[0].numpy()
+
+        def net_maps(photo: np.ndarray, mh: int = mh, mw: int = mw) -> np.ndarray:
+            x_in, left, top = letterbox(resize_image(photo, mw * scale, mh * scale), info)
+            x = torch.from_numpy(x_in.transpose(2, 0, 1).copy()).float()[None] / 255
+            with torch.no_grad():
+                out = torch.sigmoid(forward(net, x))[0].numpy()
+            return out[:, top // scale:top // scale + mh, left // scale:left // scale + mw]
+
+        ref = net_maps(img)
+        mirrored = net_maps(img[:, ::-1])[:, :, ::-1]
         if flip:  # the mean with the mirror image's maps mirrored back
             assert np.abs(mirrored - ref).max() > 1e-3  # the net itself is not symmetric
             ref = 0.5 * (ref + mirrored)
-        assert got.shape == ref.shape == (7, h, w)
+        assert got.shape == ref.shape == (7, mh, mw)
         np.testing.assert_allclose(got, ref, atol=2e-5)
         # at the photo's own size: the maps resized back
         assert det.detect(img).shape == (7, h * scale, w * scale)

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from turbinefit import __version__
 from turbinefit.errors import InputError
@@ -29,7 +30,7 @@ from turbinefit.io.georef import read_flight_georef, write_georef_outputs
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.outputs import FIT_OUTPUTS, flight_inputs, plot_error, summary_json
-from turbinefit.jobs.sources import fit_config_for, open_heatmaps
+from turbinefit.jobs.sources import fit_config_for, open_heatmaps, source_photos
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
@@ -220,7 +221,7 @@ def fit_folder(
         if plots:
             t3 = time.perf_counter()
             try:
-                write_plots(tmp, flight, result)
+                write_plots(tmp, flight, result, source_photos(source))
             except OSError as exc:  # e.g. no space left on the device
                 raise plot_error(exc, out_dir) from exc
             timings["plots"] = time.perf_counter() - t3
@@ -230,8 +231,11 @@ def fit_folder(
     return FitReport(result, out_dir, summary)
 
 
-def write_plots(out: Path, flight: Flight, result: FitResult) -> None:
-    """The figures of a fit (imports matplotlib only when called)."""
+def write_plots(out: Path, flight: Flight, result: FitResult,
+                photo: Callable[[int], NDArray[np.uint8]] | None = None) -> None:
+    """The figures of a fit (imports matplotlib only when called); ``photo`` (keyframe
+    index -> its photo, :func:`turbinefit.jobs.sources.source_photos`): the reprojections
+    are drawn over the photos, the heat-maps faint on top."""
     from turbinefit import plots
 
     geometry = result.config.geometry
@@ -244,7 +248,7 @@ def write_plots(out: Path, flight: Flight, result: FitResult) -> None:
         keyframes=plots.choose_keyframes(flight.num_keyframes, 6),
         initial_poses=flight.world_T_cam, initial_turbine=flight.turbine,
         optimised_poses=result.world_T_cam, optimised_turbine=result.turbine,
-        geometry=geometry, timestamps=flight.timestamps)
+        geometry=geometry, timestamps=flight.timestamps, photo=photo)
     if flight.gt_world_T_cam is not None:
         plots.plot_pose_errors(out / "errors.png", flight.timestamps, flight.gt_world_T_cam,
                                initial=flight.world_T_cam, optimised=result.world_T_cam)

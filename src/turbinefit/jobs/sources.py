@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Protocol
@@ -26,7 +26,7 @@ from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera, reduced_size
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
-from turbinefit.io.images import image_size, read_image
+from turbinefit.io.images import image_size, read_image, resize_image
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
@@ -218,3 +218,22 @@ def fit_config_for(source: HeatmapSource, base: FitConfig | None = None,
         return dataclasses.replace(cfg, **(options or {}))
     except (TypeError, ValueError) as exc:
         raise InputError(str(exc), field="fit options") from None
+
+
+#: Width [px] photos are decoded at for figures (:func:`source_photos`).
+PLOT_PHOTO_WIDTH = 640
+
+
+def source_photos(source: HeatmapSource) -> Callable[[int], NDArray[np.uint8]] | None:
+    """For heat-maps detected from photos (:class:`PhotoHeatmaps`): keyframe index -> its
+    photo, at most :data:`PLOT_PHOTO_WIDTH` px wide (a JPEG decoded at that size), for
+    figures drawn over the photos; None for heat-map files."""
+    if not isinstance(source, PhotoHeatmaps):
+        return None
+    cam = source.photo_camera
+    size = reduced_size(cam.width, cam.height, PLOT_PHOTO_WIDTH)
+    paths = source.paths
+
+    def photo(k: int) -> NDArray[np.uint8]:
+        return resize_image(read_image(paths[k], reduce_to=size), *size)  # PNGs: full decode
+    return photo

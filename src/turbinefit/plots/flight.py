@@ -20,7 +20,7 @@ Empty inputs or a turbine out of view give a sparse figure, never an exception.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -58,6 +58,9 @@ from turbinefit.plots.common import (
     save_png,
     skeleton_points,
 )
+
+#: Largest opacity of the heat-maps drawn over a keyframe's photo (:func:`plot_reprojections`).
+PHOTO_HEATMAP_ALPHA = 0.45
 
 
 # ---------------------------------------------------------------------------------------
@@ -282,8 +285,9 @@ def plot_reprojections(
     optimised_turbine: TurbineParams,
     geometry: TurbineGeometry = PAPER_GEOMETRY,
     timestamps: ArrayLike | None = None,
+    photo: Callable[[int], NDArray[np.uint8]] | None = None,
 ) -> Path:
-    """The turbine model projected over the heat-maps of chosen keyframes.
+    """The turbine model projected over the heat-maps (or the photos) of chosen keyframes.
 
     One panel per keyframe: its heat-maps as a colour composite (line channels steel blue,
     point channels warm white, on black), overlaid with the projected skeleton -- five
@@ -302,6 +306,11 @@ def plot_reprojections(
         initial_turbine, optimised_turbine: turbine parameters.
         geometry: shape details beyond the paper's model.
         timestamps: (N,) keyframe times [s] for the panel titles, or None.
+        photo: keyframe index -> its photo (RGB uint8, any size: stretched to the
+            camera's image), for a flight fitted from its photos: each panel then shows
+            the photo with the heat-maps faint on top (their composite, opaque in
+            proportion to the strongest channel at each pixel, at most
+            :data:`PHOTO_HEATMAP_ALPHA`), as the paper's real-data figures do.
 
     Returns:
         ``Path(path)``.
@@ -342,8 +351,15 @@ def plot_reprojections(
                      transform=axes[0].transAxes, color="0.4")
 
     for ax, k in zip(axes, kfs, strict=False):
-        ax.imshow(_heatmap_composite(heatmaps[k]), extent=(-0.5, W - 0.5, H - 0.5, -0.5),
-                  interpolation="bilinear")
+        extent = (-0.5, W - 0.5, H - 0.5, -0.5)
+        if photo is None:
+            ax.imshow(_heatmap_composite(heatmaps[k]), extent=extent, interpolation="bilinear")
+        else:
+            ax.imshow(photo(k), extent=extent, interpolation="bilinear")
+            strength = np.clip(np.nan_to_num(np.asarray(heatmaps[k], dtype=np.float64)).max(axis=0),
+                               0.0, 1.0)
+            rgba = np.dstack([_heatmap_composite(heatmaps[k]), PHOTO_HEATMAP_ALPHA * strength])
+            ax.imshow(rgba, extent=extent, interpolation="bilinear")
         for _, colour, poses, sk in skeletons:
             lines_uv, points_uv = _projectskeleton_points(camera, poses[k], sk)
             ax.plot(lines_uv[:, 0], lines_uv[:, 1], color=colour, lw=1.3, alpha=0.95)

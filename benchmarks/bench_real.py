@@ -1,0 +1,131 @@
+"""Benchmark: the heat-map CNN on real drone photos of wind turbines, labelled with boxes.
+
+The photos are not part of turbinefit (their original source's licence may not allow
+redistribution: measure on them, never commit them or train a shipped model on them).
+Get them from the MIT-licensed repository ``ertis-research/shm-wind-turbines``::
+
+    git clone --depth 1 https://github.com/ertis-research/shm-wind-turbines
+    python benchmarks/bench_real.py "shm-wind-turbines/datasets/Wind turbines and blades"
+
+That folder holds ``images/turbine/`` (whole turbines) and ``images/blade/`` (blade
+close-ups), 1024 x 1024 drone photos (half of them augmented copies, ``transformed*``,
+left out here), and one box per photo in ``annotations/turbine.csv`` and
+``annotations/blade.csv`` (``filename,width,height,class,xmin,ymin,xmax,ymax``).
+
+For the first ``--n`` original photos of each class (all with ``--n 0``) it runs
+``turbinefit evaluate --boxes`` (:func:`turbinefit.jobs.evaluate.evaluate_regions`, boxes
+grown by 5 % of their size a side) and prints, per class: the share of the line
+heat-maps' mass inside the grown box, the share of photos where a turbine is found, and
+the point peaks outside the box; then the bottom-rows artefact: the mean of the line
+channels' maximum over the maps' bottom rows (40 rows of the 1024-px photo) against that
+over the whole map. Results: ``benchmarks/results/bench_real.json``; the contact sheet of
+the worst photos goes to ``benchmarks/data/real_worst.png`` (it shows the photos: not
+committed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from common import DATA, RESULTS, write_json
+
+from turbinefit.detect import DetectorPool
+from turbinefit.eval.regions import bottom_rows
+from turbinefit.io.images import read_image
+from turbinefit.jobs.evaluate import evaluate_regions
+
+CLASSES = ("turbine", "blade")
+#: Photo rows [px of the photo] of the bottom-rows artefact.
+BOTTOM_PX = 40
+
+
+def renders_of_each_shape(n: int, model: Path | None) -> None:
+    """Held-out renders (seed 777) of each shape: line mass inside the true lines (targets
+    above 0.05 grown by 2 map px), line IoU at the photo's size, and the bottom 4 % of the
+    map's line mean against the whole map's."""
+    from scipy import ndimage
+
+    from turbinefit.detect import HeatmapDetector
+    from turbinefit.eval.regions import line_mass_inside
+    from turbinefit.sim.dataset import DatasetSpec, render_sample
+
+    det = HeatmapDetector(model)
+    for w, h in [(160, 120), (160, 160), (160, 106), (160, 90), (120, 160)]:
+        spec = DatasetSpec(n, seed=777, width=w, height=h)
+        inside, bottom, whole, inter, union = [], [], [], 0, 0
+        for k in range(n):
+            s = render_sample(spec, k)
+            m = det.detect(s.image, (w, h))
+            region = ndimage.binary_dilation(s.target[4:].max(axis=0) > 0.05, iterations=2)
+            inside.append(line_mass_inside(m, region))
+            b, a = bottom_rows(m, max(1, round(h / 25)))
+            bottom.append(b)
+            whole.append(a)
+            p, g = m[4:] > 0.5, s.target[4:] > 0.5
+            inter, union = inter + int((p & g).sum()), union + int((p | g).sum())
+        print(f"renders {w}x{h}: line mass inside {np.nanmean(inside):.3f}, line IoU "
+              f"{inter / union:.3f}, bottom rows {np.mean(bottom):.3f}, whole map "
+              f"{np.mean(whole):.3f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], epilog=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("photos_dir", type=Path,
+                    help="the data set's 'Wind turbines and blades' folder (see below)")
+    ap.add_argument("--n", type=int, default=80, help="photos per class (0 = all originals)")
+    ap.add_argument("--model", type=Path, default=None)
+    ap.add_argument("--renders", type=int, default=0,
+                    help="also N held-out renders of each shape (square, 3:2, 16:9, 3:4)")
+    args = ap.parse_args()
+    if args.renders > 0:
+        renders_of_each_shape(args.renders, args.model)
+    root = args.photos_dir
+    if not (root / "annotations").is_dir():
+        sys.exit(f"{root}: no annotations/ folder; see --help for how to get the photos")
+    DATA.mkdir(exist_ok=True)
+    RESULTS.mkdir(exist_ok=True)
+    rows: list[list[str]] = []
+    for cls in CLASSES:
+        with open(root / "annotations" / f"{cls}.csv", newline="") as f:
+            mine = [r for r in csv.reader(f) if r and not r[0].startswith("transformed")]
+        rows += mine[:args.n] if args.n > 0 else mine
+    with tempfile.TemporaryDirectory() as tmp:
+        boxes = Path(tmp) / "boxes.csv"
+        boxes.write_text("".join(",".join(r) + "\n" for r in rows))
+        rep = evaluate_regions(root / "images", boxes=boxes, model=args.model,
+                               sheet=DATA / "real_worst.png", overwrite=True, progress=True)
+    result: dict[str, object] = {"photos_dir": str(root), "n_per_class": args.n,
+                                 "model": str(rep.model), "grow": rep.grow,
+                                 "metrics": rep.summary}
+    for name, m in rep.summary.items():
+        print(f"{name:8s} {int(m['photos']):4d} photos: line mass inside the box grown by "
+              f"5 % {m['line_mass_inside']:.3f}, turbine found {m['found']:.1%}, point peaks "
+              f"outside {int(m['peaks_outside'])} of {int(m['peaks'])}")
+
+    pool = DetectorPool(args.model)
+
+    def maps(det, row):  # type: ignore[no-untyped-def]
+        img = read_image(root / "images" / row[3] / row[0])
+        return img.shape[0], det.detect_small(img)
+
+    artefact = {}
+    for cls in CLASSES:
+        mine = [r for r in rows if r[3] == cls]
+        pairs = [bottom_rows(m, round(BOTTOM_PX * m.shape[1] / h))
+                 for h, m in pool.map(maps, mine)]
+        bottom, whole = (float(np.mean(x)) for x in zip(*pairs, strict=True))
+        artefact[cls] = {"bottom_rows": bottom, "whole_map": whole}
+        print(f"{cls:8s} bottom {BOTTOM_PX} rows' line mean {bottom:.3f}, whole map {whole:.3f}")
+    result["bottom_rows"] = artefact
+    write_json(RESULTS / "bench_real.json", result)
+    print(f"wrote {RESULTS / 'bench_real.json'}; worst photos: {DATA / 'real_worst.png'}")
+
+
+if __name__ == "__main__":
+    main()

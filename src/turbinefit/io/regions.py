@@ -1,0 +1,227 @@
+"""Box and mask labels of turbine photos: the labels users have when they have no keypoints.
+
+Three formats, each read into :class:`RegionLabel` s (one per photo, in file order), every
+photo found on disk and every box checked before anything is returned:
+
+* **Box CSV** (:func:`read_box_csv`), one box a row::
+
+      filename,width,height,class,xmin,ymin,xmax,ymax
+
+  with or without that header line (any other header is refused). Coordinates are pixel
+  edges (0 is the left edge of the first pixel, ``xmax`` = ``width`` the right edge of the
+  last): ``0 <= xmin < xmax <= width``, the same in y. Rows of one ``filename`` are boxes of
+  one photo and must agree on its size. The photo is ``images_dir / filename``, or, if
+  there is none, ``images_dir / class / filename`` (a folder per class, as public data
+  sets ship them).
+* **COCO boxes** (:func:`read_coco_boxes`): ``images`` (``id``, ``file_name``, ``width``,
+  ``height``), ``annotations`` (``image_id``, ``category_id``, ``bbox`` = ``[x, y, w, h]``,
+  pixel edges), ``categories`` (``id``, ``name``: the class); photos resolved as
+  :mod:`turbinefit.io.coco` does. An image without annotations is a negative (no turbine).
+* **Masks** (:func:`read_mask_folder`): a folder of label PNGs, ``<stem>.png`` the mask of
+  the photo ``images_dir / <stem>.*`` (PNG or JPEG); any value above 0 is turbine. The
+  mask's size must be its photo's (checked by the job from the headers,
+  :meth:`RegionLabel.check_size`).
+
+Errors are :class:`~turbinefit.errors.InputError` s of one line naming the file and row
+(CSV line, JSON field or mask file): unknown columns, a box outside its image or empty, a
+photo that is missing, sizes that disagree.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from turbinefit.errors import InputError
+from turbinefit.io.atomic import StrPath, read_text
+from turbinefit.io.images import IMAGE_SUFFIXES
+
+#: The columns of a box CSV, in order.
+BOX_COLUMNS = ("filename", "width", "height", "class", "xmin", "ymin", "xmax", "ymax")
+
+Box = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class RegionLabel:
+    """One labelled photo.
+
+    Attributes:
+        path: the photo file (found on disk).
+        size: (width, height) the label says the photo is; None for a mask (its own size).
+        boxes: (class, (left, top, right, bottom)) of each box, pixel edges; empty for a
+            mask or a negative.
+        mask: the mask PNG, or None.
+        where: file and row the label came from, for messages (``boxes.csv:12``).
+    """
+
+    path: Path
+    size: tuple[int, int] | None
+    boxes: tuple[tuple[str, Box], ...] = ()
+    mask: Path | None = None
+    where: str = ""
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        """The classes of its boxes in first-seen order (``("turbine",)`` for a mask)."""
+        if self.mask is not None:
+            return ("turbine",)
+        return tuple(dict.fromkeys(c for c, _ in self.boxes))
+
+    def check_size(self, width: int, height: int, mask_size: tuple[int, int] | None = None
+                   ) -> None:
+        """Raise :class:`InputError` naming the label's row unless the photo's size
+        ``width`` x ``height`` is the label's (or, for a mask, the mask's ``mask_size``)."""
+        want = mask_size if self.mask is not None else self.size
+        if want is not None and tuple(want) != (width, height):
+            what = "the mask" if self.mask is not None else "the label"
+            raise InputError(f"photo {self.path} is {width}x{height} but {what} is "
+                             f"{want[0]}x{want[1]}", path=self.where)
+
+
+def _check_box(box: Box, size: tuple[int, int], where: str) -> None:
+    x0, y0, x1, y1 = box
+    w, h = size
+    if not all(math.isfinite(v) for v in box):
+        raise InputError(f"box {list(box)} has a non-finite coordinate", path=where)
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise InputError(f"box ({x0:g}, {y0:g})-({x1:g}, {y1:g}) is empty or outside its "
+                         f"{w}x{h} image", path=where)
+
+
+def _find_photo(images_dir: Path, names: list[str], where: str) -> Path:
+    tried = [images_dir / n for n in names]
+    for p in tried:
+        if p.is_file():
+            return p
+    raise InputError(f"photo not found (tried {', '.join(map(str, tried))})", path=where)
+
+
+def read_box_csv(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
+    """Photos and boxes of a box CSV (module docstring), one label per photo."""
+    p, d = Path(path), Path(images_dir)
+    if not d.is_dir():
+        raise InputError("images folder is not a directory", path=d)
+    rows = list(csv.reader(io.StringIO(read_text(p))))
+    out: dict[str, tuple[Path, tuple[int, int], list[tuple[str, Box]], str]] = {}
+    for k, row in enumerate(rows, start=1):
+        where = f"{p}:{k}"
+        cells = [c.strip() for c in row]
+        if not cells or cells == [""]:
+            continue
+        if k == 1 and cells and not cells[1].lstrip("-").isdigit():  # a header line
+            if tuple(c.lower() for c in cells) != BOX_COLUMNS:
+                raise InputError(f"unknown columns {','.join(cells)}; expected "
+                                 f"{','.join(BOX_COLUMNS)}", path=where)
+            continue
+        if len(cells) != len(BOX_COLUMNS):
+            raise InputError(f"{len(cells)} columns, expected {len(BOX_COLUMNS)} "
+                             f"({','.join(BOX_COLUMNS)})", path=where)
+        name, ws, hs, cls = cells[:4]
+        try:
+            size = (int(ws), int(hs))
+            box = tuple(float(v) for v in cells[4:])
+        except ValueError:
+            raise InputError(f"width, height and coordinates must be numbers: {','.join(cells)}",
+                             path=where) from None
+        if min(size) <= 0 or not name or not cls:
+            raise InputError("empty filename or class, or a size that is not positive",
+                             path=where)
+        _check_box(box, size, where)  # type: ignore[arg-type]
+        if name not in out:
+            out[name] = (_find_photo(d, [name, f"{cls}/{name}"], where), size, [], where)
+        elif out[name][1] != size:
+            raise InputError(f"{name} is {size[0]}x{size[1]} here but "
+                             f"{out[name][1][0]}x{out[name][1][1]} at {out[name][3]}",
+                             path=where)
+        out[name][2].append((cls, box))  # type: ignore[arg-type]
+    if not out:
+        raise InputError("no boxes in the file", path=p)
+    return [RegionLabel(ph, size, tuple(boxes), None, where)
+            for ph, size, boxes, where in out.values()]
+
+
+def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
+    """Photos and boxes of a COCO file's ``bbox`` annotations (module docstring)."""
+    from turbinefit.io.coco import _find_image, _load_json, _Reader
+
+    p, d = Path(path), Path(images_dir)
+    if not d.is_dir():
+        raise InputError("images folder is not a directory", path=d)
+    top = _load_json(p)
+    r = _Reader(p)
+    if not isinstance(top, dict):
+        raise InputError("expected a JSON object at the top level", path=p)
+
+    def num(obj: Any, key: str, where: str) -> float:
+        v = obj.get(key) if isinstance(obj, dict) else None
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise r.error(f"missing or not a number: {v!r}", f"{where}.{key}")
+        return float(v)
+
+    cats = {c.get("id"): str(c.get("name", c.get("id")))
+            for c in r.list_of(top, "categories") if isinstance(c, dict)}
+    images: dict[Any, tuple[Path, tuple[int, int], list[tuple[str, Box]], str]] = {}
+    for i, im in enumerate(r.list_of(top, "images")):
+        f = f"images[{i}]"
+        w, h = num(im, "width", f), num(im, "height", f)
+        if w <= 0 or h <= 0 or w != int(w) or h != int(h):
+            raise r.error(f"size {w:g}x{h:g} is not positive whole pixels", f)
+        name = im.get("file_name")
+        if not isinstance(name, str) or not name:
+            raise r.error("missing or empty", f"{f}.file_name")
+        images[im.get("id")] = (_find_image(r, d, im.get("id"), name, f),
+                                (int(w), int(h)), [], f"{p} [{f}]")
+    for i, a in enumerate(r.list_of(top, "annotations")):
+        f = f"annotations[{i}]"
+        if not isinstance(a, dict) or a.get("image_id") not in images:
+            raise r.error("image_id matches no image", f)
+        if a.get("category_id") not in cats:
+            raise r.error("category_id matches no category", f)
+        bb = a.get("bbox")
+        if not (isinstance(bb, list) and len(bb) == 4
+                and all(isinstance(v, int | float) and not isinstance(v, bool) for v in bb)):
+            raise r.error(f"expected [x, y, width, height], got {bb!r}", f"{f}.bbox")
+        _, size, boxes, _ = images[a["image_id"]]
+        box = (float(bb[0]), float(bb[1]), float(bb[0]) + bb[2], float(bb[1]) + bb[3])
+        _check_box(box, size, f"{p} [{f}.bbox]")
+        boxes.append((cats[a["category_id"]], box))
+    if not images:
+        raise InputError("no images in the file", path=p)
+    return [RegionLabel(ph, size, tuple(boxes), None, where)
+            for ph, size, boxes, where in images.values()]
+
+
+def read_mask_folder(masks_dir: StrPath, images_dir: StrPath) -> list[RegionLabel]:
+    """One label per ``<stem>.png`` in ``masks_dir`` (sorted by name), its photo
+    ``images_dir / <stem>.*`` (module docstring)."""
+    m, d = Path(masks_dir), Path(images_dir)
+    for folder in (m, d):
+        if not folder.is_dir():
+            raise InputError("not a directory", path=folder)
+    masks = sorted(q for q in m.iterdir() if q.is_file() and q.suffix.lower() == ".png")
+    if not masks:
+        raise InputError("no mask PNGs in the folder", path=m)
+    out = []
+    for q in masks:
+        photo = _find_photo(d, [q.stem + s for s in (*IMAGE_SUFFIXES, ".JPG", ".PNG")],
+                            str(q))
+        out.append(RegionLabel(photo, None, (), q, str(q)))
+    return out
+
+
+def read_region_labels(boxes: StrPath | None, masks: StrPath | None, images_dir: StrPath
+                       ) -> list[RegionLabel]:
+    """The labels of a box file (``.json``: COCO, else CSV) or a mask folder."""
+    if (boxes is None) == (masks is None):
+        raise ValueError("give exactly one of boxes and masks")
+    if masks is not None:
+        return read_mask_folder(masks, images_dir)
+    assert boxes is not None
+    if Path(boxes).suffix.lower() == ".json":
+        return read_coco_boxes(boxes, images_dir)
+    return read_box_csv(boxes, images_dir)
