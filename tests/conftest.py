@@ -52,7 +52,7 @@ def held_out_samples() -> list:
     top in view."""
     from turbinefit.sim.dataset import DatasetSpec, render_sample
 
-    spec = DatasetSpec(1, seed=987_654)
+    spec = DatasetSpec(1, seed=987_654, closeup_fraction=0.0)
     out = []
     i = 0
     while len(out) < 6:

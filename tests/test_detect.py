@@ -243,8 +243,9 @@ def test_pool_gives_one_detectors_maps_in_order(detector: HeatmapDetector,
                                                  held_out_samples: list) -> None:
     from turbinefit.io.images import resize_image
 
-    far = np.pad(resize_image(held_out_samples[0].image, 160, 120), ((60, 60), (80, 80), (0, 0)),
-                 mode="edge")  # zoomed: the second pass runs on the pool's threads too
+    fars = [np.pad(resize_image(s.image, 160, 120), ((60, 60), (80, 80), (0, 0)), mode="edge")
+            for s in held_out_samples]  # zoomed: the second pass runs on the pool's threads too
+    far = next(f for f in fars if detector.zoom_box(detector.detect_small(f)) is not None)
     images = [s.image for s in held_out_samples] + [far, held_out_samples[1].image[:, ::-1].copy()]
     pool = DetectOptions().pool(workers=2)
     assert pool.workers == 2 and pool.detector.zoom and pool.detector.flip

@@ -110,7 +110,7 @@ def boxed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two rendered 320x240 photos with a box round each turbine's heat-map targets
     (CSV and COCO) and masks of them."""
     root = tmp_path_factory.mktemp("boxed")
-    spec = DatasetSpec(20, seed=12)
+    spec = DatasetSpec(20, seed=12, closeup_fraction=0.0)  # whole turbines
     rows, coco_images, coco_anns = [], [], []
     (root / "masks").mkdir()
     for i in range(20):

@@ -37,6 +37,12 @@ def test_bad_channel_weights_are_one_clear_error(tmp_path: Path,
         assert "--channel-weights" in err[-1] and "Traceback" not in "\n".join(err)
     with pytest.raises(InputError, match="channel_weights"):
         TrainConfig(out_dir=tmp_path, channel_weights=(0.0,) * 7)
+    for bad in ("1.5", "-0.1", "x", "nan"):
+        with pytest.raises(SystemExit) as e:
+            main(["train", "--out", str(tmp_path / "m"), "--closeups", bad])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert "--closeups" in err[-1] and "Traceback" not in "\n".join(err)
     assert not (tmp_path / "m").exists()
 
 

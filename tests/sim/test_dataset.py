@@ -51,14 +51,14 @@ def test_sample_view_is_the_view_a_sample_shows() -> None:
         np.testing.assert_allclose(uv[visible], s.points[visible], rtol=0, atol=1e-9)
     view = sample_view(np.random.default_rng(np.random.SeedSequence([21, 1])))
     np.testing.assert_allclose(view.turbine.to_vector(), [
-        0.0, 0.0, 93.84084840307217, 5.686611589386724, 4.613716743355981, 0.9035845027390934,
-        41.62666103259167], rtol=1e-9)
+        0.0, 0.0, 72.12173178164132, 2.7107535082172802, 5.238251484281074, 0.9538311948663633,
+        42.479769917621205], rtol=1e-9)
     np.testing.assert_allclose(view.world_T_cam.translation,
-                               [-49.839778633233024, -28.86442895815431, 37.44597511325985],
+                               [14.81353863815756, 150.8898512668583, 92.47999403150467],
                                rtol=1e-9)
-    assert view.camera.fx == pytest.approx(124.36859651816059, rel=1e-9)
-    assert view.geometry.shaft_tilt == pytest.approx(0.047691559743318165, rel=1e-9)
-    assert DATA_VERSION == 3  # the version these views belong to
+    assert view.camera.fx == pytest.approx(96.18616235224613, rel=1e-9)
+    assert view.geometry.shaft_tilt == pytest.approx(0.0007710878035333921, rel=1e-9)
+    assert DATA_VERSION == 4  # the version these views belong to
 
 
 def test_image_scales_show_the_same_scene() -> None:
@@ -153,3 +153,59 @@ def test_a_folder_of_an_older_data_version_is_refused_by_name(tmp_path: Path) ->
     with pytest.raises(InputError, match="data version"):
         build_dataset(old, spec, workers=1, progress=False)
     assert sorted(p.name for p in old.iterdir()) == ["spec.json"]  # nothing added
+
+
+def test_closeup_targets_align_with_the_projected_geometry() -> None:
+    """Close-up samples (the part fills the frame): deterministic; the line targets lie on
+    the projected skeleton, the tip blob on the projected tip when it is in view, and the
+    rendered part covers the line target where it fills the frame (the photo shows what
+    the target marks)."""
+    from turbinefit.sim.images import render_image_and_depth, sample_scene
+    from turbinefit.turbine.model import skeleton_segments
+
+    spec = DatasetSpec(6, seed=2, width=40, height=30, image_scale=1, closeup_fraction=1.0)
+    assert render_sample(spec, 0).image.tobytes() == render_sample(spec, 0).image.tobytes()
+    filled: list[int] = []
+    tips = 0
+    for i in range(6):
+        s = render_sample(spec, i)
+        view = sample_view(np.random.default_rng(np.random.SeedSequence([spec.seed, i])),
+                           spec.width, spec.height, 1.0)
+        assert view.closeup
+        cam, T = view.camera, view.world_T_cam
+        lines = s.target[4:].max(axis=0)
+        assert lines.max() > 0.9
+        # every ridge pixel (value > 0.9) lies within a pixel of a projected skeleton segment
+        segs = T.inverse().apply(skeleton_segments(view.turbine, view.geometry).reshape(-1, 3))
+        t = np.linspace(0.0, 1.0, 400)[:, None, None]
+        segs = segs.reshape(-1, 2, 3)
+        pts = (segs[None, :, 0] + t * (segs[None, :, 1] - segs[None, :, 0])).reshape(-1, 3)
+        uv, _, _ = cam.project_unbounded(pts[pts[:, 2] > 0.05])
+        vv, uu = np.nonzero(lines > 0.9)
+        d = np.min(np.hypot(uu[:, None] - uv[None, :, 0], vv[:, None] - uv[None, :, 1]), axis=1)
+        assert d.max() < 1.0
+        for k in np.flatnonzero(s.visible[3:]):
+            u, v = s.points[3 + k]
+            j, ii = round(float(u)), round(float(v))
+            assert s.target[3, ii, j] > 0.6
+            tips += 1
+        # the photo's turbine (finite depth) covers the line target
+        big = cam.resized(2 * spec.width, 2 * spec.height)
+        scene = sample_scene(np.random.default_rng(0), view.turbine)
+        _, depth = render_image_and_depth(big, T, view.turbine.to_vector(), scene,
+                                          np.random.default_rng(0), view.geometry)
+        solid = np.isfinite(depth).reshape(spec.height, 2, spec.width, 2).any(axis=(1, 3))
+        if solid.mean() > 0.05:  # not a thin tip far out
+            assert solid[lines > 0.5].mean() > 0.8
+            filled.append(i)
+    assert len(filled) >= 2
+    assert tips >= 1
+
+
+def test_closeup_fraction() -> None:
+    with pytest.raises(ValueError, match="closeup_fraction"):
+        DatasetSpec(3, closeup_fraction=1.5)
+    rng = np.random.default_rng(3)
+    kinds = [sample_view(rng, closeup_fraction=0.3).closeup for _ in range(200)]
+    assert 40 <= sum(kinds) <= 80
+    assert not any(sample_view(rng, closeup_fraction=0.0).closeup for _ in range(20))

@@ -23,6 +23,17 @@ def channel_weights(text: str) -> tuple[float, ...]:
     return w
 
 
+def fraction(text: str) -> float:
+    """A number in [0, 1]."""
+    try:
+        f = float(text)
+    except ValueError:
+        f = math.nan
+    if not 0.0 <= f <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return f
+
+
 def widths(text: str) -> tuple[int, int, int, int]:
     """Four comma-separated positive integers (channel widths of the heat-map CNN)."""
     try:
@@ -92,6 +103,9 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    "resolution from the full-resolution features (input scale 2; default: as "
                    "--init, else none); --init weights without one get one that starts out "
                    "adding nothing")
+    t.add_argument("--closeups", type=fraction, default=0.3, metavar="F",
+                   help="share of the rendered views that are close-ups of one blade or the "
+                   "tower filling the frame")
     t.add_argument("--max-steps", type=positive_int, default=None,
                    help="stop after this many steps (smoke tests)")
     t.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -115,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
                       pos_weight=args.pos_weight, channel_weights=args.channel_weights,
-                      widths=args.widths, fine=args.fine)
+                      widths=args.widths, fine=args.fine, closeup_fraction=args.closeups)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

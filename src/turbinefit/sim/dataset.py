@@ -2,9 +2,13 @@
 
 Each sample is one view of one random scene: a random turbine
 (:func:`turbinefit.sim.turbines.sample_turbine`, with random shaft tilt and blade cone),
-a random scene look (:func:`turbinefit.sim.images.sample_scene`), a random camera (70 %
-varied training views of :func:`turbinefit.sim.images.sample_training_view`, 30 % keyframes
-of planned inspection flights, horizontal field of view 50-90 deg). Targets are the
+a random scene look (:func:`turbinefit.sim.images.sample_scene`), a random camera (a share
+``closeup_fraction``, 30 % by default, of close-ups of one blade or the tower filling the
+frame, :func:`turbinefit.sim.images.sample_closeup_view`, with stronger motion blur and
+exposure errors; of the rest 70 % varied training views of
+:func:`turbinefit.sim.images.sample_training_view` and 30 % keyframes of planned
+inspection flights; horizontal field of view 50-90 deg). A close-up's targets are the
+same skeleton projected: the visible part's line, and its tip when in view. Targets are the
 skeleton's heat-maps (:func:`turbinefit.sim.render.render_heatmaps`, no imperfections) at
 the heat-map size ``width`` x ``height``, with blob / ridge standard deviation
 :data:`turbinefit.heatmaps.targets.TARGET_SIGMA_PX`; only the inspected turbine is
@@ -57,6 +61,7 @@ from turbinefit.io.images import resize_image
 from turbinefit.sim.images import (
     points_in_sight,
     render_image_and_depth,
+    sample_closeup_view,
     sample_scene,
     sample_training_view,
 )
@@ -72,10 +77,16 @@ IMAGE_SCALE = 2
 #: Photos are rendered at this multiple of the model's input size, then resized.
 RENDER_SCALE = 2
 #: Bumped whenever the renderer or the sampling changes what sample i looks like, or the
-#: arrays a dataset folder holds change (3: in_sight.npy).
-DATA_VERSION = 3
+#: arrays a dataset folder holds change (3: in_sight.npy; 4: close-ups, surface wear,
+#: ground clutter).
+DATA_VERSION = 4
 #: Fraction of samples taken from planned inspection flights (the rest: varied views).
 FLIGHT_FRACTION = 0.3
+#: Default fraction of close-ups (one blade or the tower filling the frame).
+CLOSEUP_FRACTION = 0.3
+#: Close-ups' camera effects: motion blur up to this [px at the render size] and
+#: exposure errors of this standard deviation (log gain) at most.
+CLOSEUP_BLUR_PX, CLOSEUP_EXPOSURE_SIGMA = 8.0, 0.45
 
 _ARRAYS = ("images", "targets", "points", "visible", "in_sight", "done")
 
@@ -84,7 +95,7 @@ _ARRAYS = ("images", "targets", "points", "visible", "in_sight", "done")
 class DatasetSpec:
     """What a rendered dataset is: ``n_images`` samples ``seed``-determined, heat-map
     targets of ``width`` x ``height`` [px] with sigma ``sigma_px`` [px], photos
-    ``image_scale`` times that size."""
+    ``image_scale`` times that size, a share ``closeup_fraction`` of them close-ups."""
 
     n_images: int
     seed: int = 0
@@ -93,6 +104,7 @@ class DatasetSpec:
     sigma_px: float = TARGET_SIGMA_PX
     version: int = DATA_VERSION
     image_scale: int = IMAGE_SCALE
+    closeup_fraction: float = CLOSEUP_FRACTION
 
     def __post_init__(self) -> None:
         if self.n_images < 1:
@@ -101,6 +113,8 @@ class DatasetSpec:
             raise ValueError(f"image size must be at least 16x16, got {self.width}x{self.height}")
         if self.image_scale not in (1, 2):
             raise ValueError(f"image_scale must be 1 or 2, got {self.image_scale}")
+        if not 0.0 <= self.closeup_fraction <= 1.0:
+            raise ValueError(f"closeup_fraction must be in [0, 1], got {self.closeup_fraction}")
 
 
 @dataclass(frozen=True)
@@ -150,18 +164,25 @@ class View:
     geometry: TurbineGeometry
     camera: PinholeCamera
     world_T_cam: SE3
+    closeup: bool = False
 
 
 def sample_view(rng: np.random.Generator, width: int = MODEL_WIDTH,
-                height: int = MODEL_HEIGHT) -> View:
+                height: int = MODEL_HEIGHT,
+                closeup_fraction: float = CLOSEUP_FRACTION) -> View:
     """A random :class:`View` as the training data draws them (turbine, shaft tilt and
-    blade cone, horizontal field of view 50-90 deg, 70 % varied views and 30 % keyframes of
-    planned inspection flights), for heat-maps of ``width`` x ``height`` px. Other
-    renderers (``benchmarks/bench_blender.py``) use it to show the same kinds of views."""
+    blade cone, horizontal field of view 50-90 deg; a share ``closeup_fraction`` of
+    close-ups, of the rest 70 % varied views and 30 % keyframes of planned inspection
+    flights), for heat-maps of ``width`` x ``height`` px. Other renderers
+    (``benchmarks/bench_blender.py``) use it to show the same kinds of views."""
+    closeup = bool(rng.uniform() < closeup_fraction)
     turbine = sample_turbine(rng, base_radius=0.0)
     geometry = _random_geometry(rng)
     small = _camera(rng, width, height)
     big = small.resized(width * RENDER_SCALE, height * RENDER_SCALE)
+    if closeup:
+        return View(turbine, geometry, small, sample_closeup_view(rng, turbine, big, geometry),
+                    closeup=True)
     if rng.uniform() < FLIGHT_FRACTION:
         pose = _flight_view(rng, turbine, geometry)
     else:
@@ -172,11 +193,16 @@ def sample_view(rng: np.random.Generator, width: int = MODEL_WIDTH,
 def render_sample(spec: DatasetSpec, index: int) -> Sample:
     """Sample ``index`` of the dataset ``spec`` (deterministic)."""
     rng = np.random.default_rng(np.random.SeedSequence([spec.seed, index]))
-    view = sample_view(rng, spec.width, spec.height)
+    view = sample_view(rng, spec.width, spec.height, spec.closeup_fraction)
     turbine, geometry, small, pose = view.turbine, view.geometry, view.camera, view.world_T_cam
     render = max(RENDER_SCALE, spec.image_scale)
     big = small.resized(spec.width * render, spec.height * render)
     scene = sample_scene(rng, turbine)
+    if view.closeup:  # a drone close to a blade: shaken, and metered on the wrong thing
+        eff = scene.effects
+        scene = replace(scene, effects=replace(
+            eff, motion_blur_px=float(rng.uniform(0.0, CLOSEUP_BLUR_PX)),
+            exposure_sigma=float(rng.uniform(eff.exposure_sigma, CLOSEUP_EXPOSURE_SIGMA))))
     photo, depth = render_image_and_depth(big, pose, turbine.to_vector(), scene, rng, geometry)
     image = resize_image(photo, spec.width * spec.image_scale, spec.height * spec.image_scale)
     target = render_heatmaps(small, pose, turbine.to_vector(), geometry,

@@ -59,6 +59,7 @@ from turbinefit.heatmaps.model_info import ModelInfo
 from turbinefit.heatmaps.targets import TARGET_SIGMA_PX
 from turbinefit.io.atomic import write_bytes_atomic, write_text_atomic
 from turbinefit.sim.dataset import (
+    CLOSEUP_FRACTION,
     IMAGE_SCALE,
     MODEL_HEIGHT,
     MODEL_WIDTH,
@@ -90,7 +91,8 @@ FLIP = True
 ZOOM = True
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
-                "input_scale", "pos_weight", "channel_weights", "widths", "fine", "add_data")
+                "input_scale", "pos_weight", "channel_weights", "widths", "fine", "add_data",
+                "closeup_fraction")
 
 
 @dataclass
@@ -132,6 +134,8 @@ class TrainConfig:
         fine: channels of the net's fine branch at heat-map resolution (input scale 2
             only; 0: none); ``init`` weights without one get one that starts out adding
             nothing (:func:`~turbinefit.train.net.add_fine`). None: as ``init`` (or 0).
+        closeup_fraction: share of the rendered training and validation views that are
+            close-ups of one blade or the tower (:class:`~turbinefit.sim.dataset.DatasetSpec`).
     """
 
     out_dir: Path
@@ -155,6 +159,7 @@ class TrainConfig:
     input_scale: int = IMAGE_SCALE
     widths: Widths | None = None
     fine: int | None = None
+    closeup_fraction: float = CLOSEUP_FRACTION
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -440,11 +445,13 @@ def train(cfg: TrainConfig, progress: bool = True,
 
     data_dir = cfg.data_dir or (out / "data")
     datasets = [(data_dir / f"train-n{cfg.n_images}-s{cfg.seed}-x{scale}",
-                 DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale))]
+                 DatasetSpec(cfg.n_images, cfg.seed, image_scale=scale,
+                             closeup_fraction=cfg.closeup_fraction))]
     if cfg.val_images:
         datasets.append((data_dir / f"val-n{cfg.val_images}-s{cfg.seed}-x{scale}",
                          DatasetSpec(cfg.val_images, cfg.seed + VAL_SEED_OFFSET,
-                                     image_scale=scale)))
+                                     image_scale=scale,
+                                     closeup_fraction=cfg.closeup_fraction)))
     for folder, spec in datasets:  # a folder of another spec: refused before any writing
         check_dataset_folder(folder, spec)
     extra = [_added_dataset(Path(f), datasets[0]) for f in cfg.add_data]

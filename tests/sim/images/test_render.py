@@ -189,3 +189,29 @@ def test_depth_and_points_in_sight(clear_scene: Scene) -> None:
     out = axis + np.array([0.0, 0.0, 500.0])  # far above the image
     seen = points_in_sight(CAMERA, T, np.stack([behind, front, aside, out]), depth)
     assert seen.tolist() == [False, True, True, False]
+
+
+def test_clutter_is_drawn_where_it_projects(clear_scene: Scene) -> None:
+    """A wire and a building of the scene's clutter darken the sky / ground where they
+    project and nowhere else; a scene's clutter is drawn from its seed alone."""
+    from turbinefit.sim.images.clutter import Clutter
+
+    cam = PinholeCamera(80, 60, 60.0, 60.0, 39.5, 29.5)
+    pose = _pose((-300.0, -300.0, 40.0), 0.0, 0.05)  # looking along +x, the turbine aside
+    wire = (-250.0, -330.0, 45.0, -250.0, -270.0, 45.0, 0.05, 0.1, 0.1, 0.1)
+    shed = (-200.0, -300.0, 4.0, 6.0, 6.0, 4.0, 0.0, 0.6, 0.2, 0.15)
+    bare = replace(clear_scene, clutter=Clutter())
+    with_ = replace(clear_scene, clutter=Clutter(rods=(wire,), boxes=(shed,)))
+    th = TURBINE.to_vector()
+    a = render_image(cam, pose, th, bare, np.random.default_rng(0)).astype(float)
+    b = render_image(cam, pose, th, with_, np.random.default_rng(0)).astype(float)
+    changed = np.abs(a - b).sum(axis=-1) > 6
+    uv, _, _ = cam.project_unbounded(pose.inverse().apply(np.array([[-250.0, -300.0, 45.0],
+                                                                    [-200.0, -300.0, 4.0]])))
+    for u, v in uv:
+        assert changed[round(v) - 1:round(v) + 2, round(u) - 1:round(u) + 2].any()
+    rows = np.flatnonzero(changed.any(axis=1))
+    assert rows.size < 30  # a thin wire and a small shed, not the whole image
+    s1 = sample_scene(np.random.default_rng(8), TURBINE)
+    s2 = sample_scene(np.random.default_rng(8), TURBINE)
+    assert s1.clutter == s2.clutter and s1.wear == s2.wear

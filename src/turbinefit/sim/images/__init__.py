@@ -41,6 +41,11 @@ What is drawn, per pixel (everything is ray cast, vectorised with numpy):
   shadows; up to three layers of distant hills as silhouettes over azimuth; aerial
   perspective (haze) growing with distance. Texture detail fades with the pixel footprint
   (no shimmering far away).
+* **Surface detail**: blade wear (leading-edge erosion on the outer half, dirt streaks,
+  bond lines along both edges, lightning receptors near the tip) and the tower's flange
+  seams, seen in close-ups.
+* **Clutter** that looks like lines (:mod:`~turbinefit.sim.images.clutter`): power lines
+  on lattice pylons, wooden poles and their wires, fences, buildings, offshore platforms.
 * **Camera effects** per frame: auto-exposure with jitter, white balance, colour/gamma
   jitter, vignetting, motion blur (random direction, 0-3 px), defocus (Gaussian), sensor
   noise and a JPEG round trip through Pillow, all with random strengths, sometimes nearly
@@ -66,7 +71,8 @@ Modules: :mod:`~turbinefit.sim.images.scene` (the :class:`Scene` and its samplin
 :mod:`~turbinefit.sim.images.painter` (ray casting the turbine's parts),
 :mod:`~turbinefit.sim.images.effects` (camera effects),
 :mod:`~turbinefit.sim.images.render` (the rendering entry points),
-:mod:`~turbinefit.sim.images.views` (random training views),
+:mod:`~turbinefit.sim.images.views` (random training views and close-ups),
+:mod:`~turbinefit.sim.images.clutter` (pylons, wires, fences, buildings),
 :mod:`~turbinefit.sim.images.arrays` (float32 channels-first helpers).
 """
 
@@ -82,4 +88,5 @@ from turbinefit.sim.images.scene import flight_scene as flight_scene
 from turbinefit.sim.images.scene import sample_scene as sample_scene
 from turbinefit.sim.images.turbine import TurbineSolid as TurbineSolid
 from turbinefit.sim.images.turbine import blade_profile as blade_profile
+from turbinefit.sim.images.views import sample_closeup_view as sample_closeup_view
 from turbinefit.sim.images.views import sample_training_view as sample_training_view

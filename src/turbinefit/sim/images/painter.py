@@ -9,9 +9,11 @@ import math
 
 import numpy as np
 
-from turbinefit.sim.images.arrays import FloatArray, blend, column, dot3, matmul3, take_cols
+from turbinefit.sim.images.arrays import F32, FloatArray, blend, column, dot3, matmul3, take_cols
+from turbinefit.sim.images.clutter import Clutter
 from turbinefit.sim.images.frame import NEAR, Frame
 from turbinefit.sim.images.scene import Scene
+from turbinefit.sim.images.textures import cell_hash
 from turbinefit.sim.images.turbine import TurbineSolid, blade_profile
 
 
@@ -130,6 +132,8 @@ class Painter:
         if kind == "tower":
             cov = cov * np.clip(0.5 + (np.float32(L) - s_hit) * sq / pix, 0.0, 1.0)
             z = np.float32(fr.o[2]) + depth * D[2]
+            if self.sc.dirt > 0 or self.sc.tower_section > 0:
+                albedo = self.tower_surface(albedo, z, np.arctan2(Y, X) * A)
             hb, *bc = self.sc.base_band
             if hb > 0:
                 m = np.clip((np.float32(hb) - z) / (depth * np.float32(fr.inv_f)) + 0.5, 0, 1)
@@ -142,7 +146,9 @@ class Painter:
                                 - np.pi)
                     dm = low[(da * A[low] < 0.55) & (z[low] > 0.15) & (z[low] < 2.4)]
                     albedo[:, dm] = column((0.35, 0.36, 0.37))
-        elif self.sc.tip_bands:
+        else:
+            albedo = self.blade_surface(albedo, u * np.float32(L), np.float32(L), X / A, X)
+        if kind != "tower" and self.sc.tip_bands:
             if self.sc.tip_bands == 1:
                 band = u > 0.9
             else:
@@ -151,17 +157,64 @@ class Painter:
         col = fr.shade(albedo, nl, nz, nD, dot3(fr.sun_f, D), 0.3)
         fr.composite(idx, depth, cov, fr.hazed(col, depth))
 
+    def blade_surface(self, albedo: F32, span: F32, L: np.float32, chord: F32,
+                      chord_m: F32) -> F32:
+        """A blade's wear at ``span`` [m from the hub] and ``chord`` (-1 trailing .. 1
+        leading edge; ``chord_m`` the same in metres from the chord's middle):
+        leading-edge erosion on the outer half (speckled grey pits,
+        :attr:`Scene.wear`), dirt streaks along the span (:attr:`Scene.dirt`), the shell's
+        bond lines along both edges, and two lightning receptors (dark metal discs) near
+        the tip. They matter in close-ups and average out far away."""
+        sc, salt = self.sc, self.sc.seed % 100_003
+        out = albedo
+        # bond lines along both edges
+        seam = (np.abs(chord) > 0.93) & (np.abs(chord) < 0.965)
+        out = out * np.where(seam, np.float32(0.86), np.float32(1.0))[None]
+        if sc.dirt > 0:
+            h = cell_hash(np.floor(span * 0.4).astype(np.int32),
+                          np.floor((chord + 1.0) * 9.0).astype(np.int32), salt)
+            out = out * (1.0 - np.float32(0.22 * sc.dirt) * h * h)[None]
+        if sc.wear > 0:
+            outer = np.clip((span / L - 0.5) * 2.0, 0.0, 1.0)
+            edge = np.clip((chord - 0.55) * 3.0, 0.0, 1.0)
+            pit = cell_hash(np.floor(span * 6.0).astype(np.int32),
+                            np.floor(chord * 40.0).astype(np.int32), salt + 1)
+            m = (pit < np.float32(sc.wear) * outer * edge * 1.4) & (chord > 0.4)
+            out = blend(out, column((0.5, 0.49, 0.46)), m.astype(np.float32) * 0.5)
+        for r_m in (0.4, 2.5):  # receptors, on both faces near the chord's middle
+            d2 = (span - (L - np.float32(r_m))) ** 2 + chord_m * chord_m
+            out = blend(out, column((0.28, 0.28, 0.3)), (d2 < 0.012).astype(np.float32))
+        return out
+
+    def tower_surface(self, albedo: F32, z: F32, around: F32) -> F32:
+        """The tower's flange seams every :attr:`Scene.tower_section` metres and vertical
+        dirt streaks (``around``: arc length round the tower [m])."""
+        sc = self.sc
+        out = albedo
+        if sc.tower_section > 0:
+            f = np.abs(((z / np.float32(sc.tower_section)) + 0.5) % 1.0 - 0.5) * sc.tower_section
+            out = out * np.where(f < 0.06, np.float32(0.8), np.float32(1.0))[None]
+        if sc.dirt > 0:
+            h = cell_hash(np.floor(around * 1.5).astype(np.int32),
+                          np.floor(z * 0.05).astype(np.int32), sc.seed % 100_003 + 2)
+            out = out * (1.0 - np.float32(0.15 * sc.dirt) * h)[None]
+        return out
+
     def box(self, tb: TurbineSolid) -> None:
-        """The nacelle: a box (slab test) with rounded (superellipse) shading; coverage from
-        its inside margin divided by the margin's screen gradient (~ signed pixel distance)."""
+        """The nacelle: a box with rounded edges (:meth:`solid_box`)."""
+        self.solid_box(tb.nac_centre, np.stack([tb.shaft, tb.side, tb.up]), tb.nac_half,
+                       column(self.sc.paint) * np.float32(0.97))
+
+    def solid_box(self, centre: FloatArray, E: FloatArray, hx: FloatArray, albedo: F32) -> None:
+        """A box round ``centre`` with axes the rows of ``E`` and half sizes ``hx`` (slab
+        test) with rounded (superellipse) shading; coverage from its inside margin divided
+        by the margin's screen gradient (~ signed pixel distance)."""
         fr = self.fr
-        E = np.stack([tb.shaft, tb.side, tb.up])  # rows: local axes
-        hx = tb.nac_half
-        oc = E @ (fr.o - tb.nac_centre)
+        oc = E @ (fr.o - centre)
         if np.all(np.abs(oc) < hx + 0.2):
-            return  # the camera is inside the nacelle: draw nothing rather than a wall
+            return  # the camera is inside the box: draw nothing rather than a wall
         signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
-        bb = fr.bbox(tb.nac_centre + (signs * hx) @ E, 0.0)
+        bb = fr.bbox(centre + (signs * hx) @ E, 0.0)
         if bb is None:
             return
         i0, i1, j0, j1 = bb
@@ -197,7 +250,6 @@ class Painter:
         nloc = np.sign(P) * (q4 * q2 * q) / h32  # superellipse gradient: rounded edges
         nloc /= np.maximum(np.sqrt((nloc * nloc).sum(axis=0)), 1e-12)[None]
         n = matmul3(E.T, nloc)
-        albedo = column(self.sc.paint) * np.float32(0.97)
         col = fr.shade(albedo, dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0), dot3(fr.sun_f, D),
                        0.3)
         fr.composite(idx, tn, cov, fr.hazed(col, tn))
@@ -236,6 +288,68 @@ class Painter:
         col = fr.shade(column(self.sc.paint), dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0),
                        dot3(fr.sun_f, D), 0.35)
         fr.composite(idx, t, cov, fr.hazed(col, t))
+
+    def rod(self, a: FloatArray, b: FloatArray, r: float, albedo: F32) -> None:
+        """A round rod of radius ``r`` [m] from a to b (pylon members, poles, wires): each
+        ray's closest approach to the axis gives its coverage (sub-pixel wires one pixel
+        wide and faint) and the cylinder's normal where it enters."""
+        fr = self.fr
+        ab = b - a
+        L = float(np.linalg.norm(ab))
+        if L <= 1e-6:
+            return
+        e = ab / L
+        idx = fr.segment_pixels(a, b, r)
+        if idx is None:
+            return
+        D = take_cols(fr.D, idx)
+        w = fr.o - a
+        b_, dw, trip = matmul3(np.stack([e, w, np.cross(w, e)]).astype(np.float32), D)
+        ew = np.float32(w @ e)
+        den = np.maximum(1.0 - b_ * b_, 1e-6)
+        sq = np.sqrt(den)
+        s_raw = ew + (b_ * ew - dw) / den * b_
+        s = np.clip(s_raw, 0.0, np.float32(L))
+        t = s * b_ - dw
+        x = trip / sq
+        pix = np.maximum(t, NEAR) * np.float32(fr.inv_f)
+        ds = (np.maximum(s_raw - np.float32(L), 0.0) + np.maximum(-s_raw, 0.0)) * sq
+        dist = np.sqrt(x * x + ds * ds)
+        hw_eff = np.maximum(np.float32(r), 0.6 * pix)
+        cov = np.clip(0.5 + (hw_eff - dist) / pix, 0.0, 1.0) * (np.float32(r) / hw_eff) * (t > NEAR)
+        sel = np.flatnonzero(cov > 0.003)
+        if sel.size == 0:
+            return
+        idx, D, x, t, b_, cov = idx[sel], take_cols(D, sel), x[sel], t[sel], b_[sel], cov[sel]
+        q = np.clip(x / np.float32(r), -1.0, 1.0)
+        perp = D - e.astype(np.float32)[:, None] * b_[None]
+        perp /= np.maximum(np.sqrt((perp * perp).sum(axis=0)), 1e-6)[None]
+        side = np.cross(e.astype(np.float32)[:, None], perp, axis=0)
+        n = q[None] * side - np.sqrt(1.0 - q * q)[None] * perp
+        col = fr.shade(np.repeat(albedo, idx.size, axis=1), dot3(fr.sun_f, n), n[2],
+                       (n * D).sum(axis=0), dot3(fr.sun_f, D), 0.15)
+        fr.composite(idx, t, cov, fr.hazed(col, t))
+
+    def clutter(self, cl: Clutter) -> None:
+        """The scene's rods and boxes that can show (in front of the camera, in or near
+        the frame, and thicker than a twentieth of a pixel where nearest)."""
+        fr = self.fr
+        if cl.rods:
+            R = np.asarray(cl.rods, dtype=np.float64)
+            ca, cb = fr.to_cam(R[:, 0:3]), fr.to_cam(R[:, 3:6])
+            zmin = np.maximum(np.minimum(ca[:, 2], cb[:, 2]), NEAR)
+            zmax = np.maximum(ca[:, 2], cb[:, 2])
+            near = np.linalg.norm(0.5 * (R[:, 0:3] + R[:, 3:6]) - fr.o, axis=1) \
+                - 0.5 * np.linalg.norm(R[:, 3:6] - R[:, 0:3], axis=1)
+            thick = R[:, 6] * fr.f / np.maximum(near, NEAR) > 0.05
+            for k in np.flatnonzero((zmax > NEAR) & thick & (zmin < 4000.0)):
+                self.rod(R[k, 0:3], R[k, 3:6], float(R[k, 6]), column(tuple(R[k, 7:10])))
+        for bx in cl.boxes:
+            cx, cy, cz, hx, hy, hz, yaw, *c = bx
+            cw, sw = math.cos(yaw), math.sin(yaw)
+            E = np.array([[cw, sw, 0.0], [-sw, cw, 0.0], [0.0, 0.0, 1.0]])
+            self.solid_box(np.array([cx, cy, cz]), E, np.array([hx, hy, hz]),
+                           column(tuple(c)))  # type: ignore[arg-type]
 
     def turbine(self, tb: TurbineSolid) -> None:
         """All parts, far to near (so that anti-aliased edges blend over what is behind)."""

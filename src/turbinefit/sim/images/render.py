@@ -66,6 +66,7 @@ def render_image_and_depth(
     land.prepare_shadows(turbines)
     land.paint()
     painter = Painter(fr, scene)
+    painter.clutter(scene.clutter)
     for tb in sorted(turbines, key=lambda q: -float(np.linalg.norm(q.centre - fr.o))):
         painter.turbine(tb)
     img = fr.C.reshape(3, camera.height, camera.width)

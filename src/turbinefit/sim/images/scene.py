@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from turbinefit.sim.images.arrays import RGB
+from turbinefit.sim.images.clutter import NO_CLUTTER, Clutter, sample_clutter
 from turbinefit.sim.images.textures import scene_assets
 from turbinefit.turbine.model import BLADE_PERIOD, TurbineParams
 
@@ -103,6 +104,11 @@ class Scene:
         nacelle: ``(rear overhang / nacelle_length, height / blade_length, width / height)``.
         neighbours: other turbines of the wind farm, theta 7-vectors.
         effects: maximum strengths of the per-frame camera effects.
+        wear: 0..1, leading-edge erosion of the blades' outer halves (close-ups show it).
+        dirt: 0..1, streaks of dirt and oil along blades and tower.
+        tower_section: height of the tower's sections [m] (flange seams between them).
+        clutter: line-like things on the ground and in the air (power lines, pylons,
+            fences, buildings; :class:`~turbinefit.sim.images.clutter.Clutter`).
     """
 
     seed: int
@@ -142,6 +148,10 @@ class Scene:
     nacelle: tuple[float, float, float]
     neighbours: tuple[tuple[float, float, float, float, float, float, float], ...]
     effects: CameraEffects
+    wear: float = 0.0
+    dirt: float = 0.0
+    tower_section: float = 0.0
+    clutter: Clutter = NO_CLUTTER
 
     def __post_init__(self) -> None:
         if self.terrain not in TERRAINS:
@@ -271,6 +281,18 @@ def _roads(rng: np.random.Generator, t: TurbineParams,
     return tuple(roads), tuple(pads)
 
 
+def _surface_and_clutter(seed: int, turbine: TurbineParams,
+                         roads: tuple[tuple[float, float, float, float, float], ...],
+                         sea: str) -> tuple[float, float, float, Clutter]:
+    """The blades' wear and dirt, the tower's sections and the clutter, from their own
+    generator (seeded by the scene's seed), so that the rest of a scene is drawn as before
+    they existed."""
+    rng = np.random.default_rng([seed, 7])
+    wear = float(rng.uniform(0.0, 1.0) ** 2) if rng.uniform() < 0.7 else 0.0
+    return (wear, float(rng.uniform(0.0, 1.0)), float(rng.uniform(18.0, 30.0)),
+            sample_clutter(rng, turbine, roads, sea))
+
+
 def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
     """A random scene round ``turbine`` (the primary, world metres): sky, terrain,
     atmosphere, paint, neighbour turbines and camera-effect strengths.
@@ -360,6 +382,7 @@ def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
         jpeg_quality=(lo_q, min(95, lo_q + int(rng.integers(5, 30)))),
         clean_prob=0.15,
     )
+    wear, dirt, section, clutter = _surface_and_clutter(seed, turbine, roads, sea)
     scene = Scene(
         seed=seed, overcast=float(overcast), cloud_cover=float(cover),
         cloud_altitude=float(rng.uniform(800.0, 2500.0)),
@@ -379,6 +402,7 @@ def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
         paint=paint, base_band=band, door=bool(rng.uniform() < 0.7), tip_bands=tip_bands,
         tip_colour=_jitter(rng, (0.75, 0.12, 0.1), 0.1), blade_pitch=float(pitch),
         nacelle=nacelle, neighbours=neighbours, effects=effects,
+        wear=wear, dirt=dirt, tower_section=section, clutter=clutter,
     )
     scene_assets(scene)  # generate the noise tiles now
     return scene

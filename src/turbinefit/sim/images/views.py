@@ -1,5 +1,7 @@
 """Random camera views of a turbine for training data: far, medium and close views aimed
-near its parts, clear of its solid.
+near its parts, clear of its solid (:func:`sample_training_view`), and close-ups of one
+blade or the tower filling the frame, as surface inspection photographs them
+(:func:`sample_closeup_view`).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import numpy as np
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
-from turbinefit.sim.images.turbine import solid_segments
+from turbinefit.sim.images.turbine import blade_profile, solid_segments
 from turbinefit.sim.trajectory import distance_to_segments
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams, model_points
 
@@ -85,4 +87,75 @@ def sample_training_view(
     pitch = math.atan2(v[2], math.hypot(v[0], v[1])) + spread * half_v * rng.uniform(-1.0, 1.0)
     pitch = float(np.clip(pitch, -math.radians(60.0), math.radians(60.0)))
     roll = float(np.clip(rng.normal(0.0, math.radians(2.0)), -math.radians(5.0), math.radians(5.0)))
+    return world_T_cam_from_angles(pos, yaw, pitch, roll)
+
+
+#: [m] range of a close-up's distance from the part's surface.
+CLOSEUP_RANGE_M = (3.0, 30.0)
+
+
+def sample_closeup_view(
+    rng: np.random.Generator,
+    turbine: TurbineParams,
+    camera: PinholeCamera,
+    geometry: TurbineGeometry = PAPER_GEOMETRY,
+) -> SE3:
+    """``world_T_cam`` of a close-up of one blade (75 %) or the tower (25 %), as a surface
+    inspection photographs them: the camera 3-30 m from the part's surface
+    (:data:`CLOSEUP_RANGE_M`, log-uniform), looking at a point of it from any side and at
+    up to 55 deg off the part's normal (mostly from above, the ground behind, as
+    inspection photos are taken), so the part fills much of the frame and crosses it
+    at any angle; aimed with offsets of up to a third of the field of view (the part's
+    line need not pass through the centre); blade points are drawn towards the tip (span
+    0.3-1.05, so the tip is in view in about half the blade close-ups), roll within
+    +-20 deg. The camera keeps 2 m from the part's surface, 3 m above the ground and 5 m
+    from the other parts' axes; a draw that fails 200 times falls back to a view from
+    30 m out.
+    """
+    p, _ = model_points(turbine.to_vector(), geometry)
+    segs = solid_segments(turbine, geometry)
+    half_h = math.atan(0.5 * camera.width / camera.fx)
+    half_v = math.atan(0.5 * camera.height / camera.fy)
+    blade = rng.uniform() < 0.75
+    i = int(rng.integers(0, 3))
+    a, b = (p[2], p[3 + i]) if blade else (p[0], p[1])
+    axis = b - a
+    length = float(np.linalg.norm(axis))
+    e = axis / max(length, 1e-9)
+    n1 = np.cross(e, [0.0, 0.0, 1.0]) if abs(e[2]) < 0.95 else np.cross(e, [1.0, 0.0, 0.0])
+    n1 /= np.linalg.norm(n1)
+    n2 = np.cross(e, n1)
+    others = np.stack([g for g in segs if not (np.allclose(g[0], a) and np.allclose(g[1], b))])
+    pos = target = a + 0.5 * axis
+    for _attempt in range(200):
+        s = rng.uniform(0.3, 1.05) if blade else rng.uniform(0.1, 0.95)
+        if blade:
+            u = np.array([min(s, 1.0)], dtype=np.float32)
+            radius = float(blade_profile(u, turbine.blade_length)[0][0])
+        else:
+            radius = turbine.tower_height * (1 / 30 + (1 / 45 - 1 / 30) * s)
+        target = a + min(s, 1.0) * axis
+        lo, hi = CLOSEUP_RANGE_M
+        dist = radius + math.exp(rng.uniform(math.log(lo), math.log(hi)))
+        phi = rng.uniform(0.0, 2 * math.pi)
+        tilt = math.radians(rng.uniform(-55.0, 55.0))  # off the part's normal, along it
+        normal = math.cos(phi) * n1 + math.sin(phi) * n2
+        if normal[2] < 0 and rng.uniform() < 0.6:  # mostly from above, the ground behind
+            normal = -normal
+        d = math.cos(tilt) * normal + math.sin(tilt) * e
+        pos = target + dist * d
+        if pos[2] < 3.0:
+            continue
+        own, _ = distance_to_segments(pos[None], np.stack([a, b])[None])
+        gap, _ = distance_to_segments(pos[None], others)
+        if float(own[0]) >= radius + 2.0 and float(gap[0]) >= 5.0:
+            break
+    else:
+        pos = target + (turbine.blade_length * 0.1 + 30.0) * np.array([1.0, 0.0, 0.0])
+        pos[2] = max(pos[2], 3.0)
+    v = target - pos
+    yaw = math.atan2(v[1], v[0]) + half_h * rng.uniform(-1.0, 1.0) / 3.0
+    pitch = math.atan2(v[2], math.hypot(v[0], v[1])) + half_v * rng.uniform(-1.0, 1.0) / 3.0
+    pitch = float(np.clip(pitch, -math.radians(85.0), math.radians(85.0)))
+    roll = math.radians(rng.uniform(-20.0, 20.0))
     return world_T_cam_from_angles(pos, yaw, pitch, roll)
