@@ -107,7 +107,7 @@ def sample_closeup_view(
     inspection photos are taken), so the part fills much of the frame and crosses it
     at any angle; aimed with offsets of up to a third of the field of view (the part's
     line need not pass through the centre); blade points are drawn towards the tip (span
-    0.3-1.05, so the tip is in view in about half the blade close-ups), roll within
+    0.3-1.05: a blade tip is in view in about half of all close-ups), roll within
     +-20 deg. The camera keeps 2 m from the part's surface, 3 m above the ground and 5 m
     from the other parts' axes; a draw that fails 200 times falls back to a view from
     30 m out.
