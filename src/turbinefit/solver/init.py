@@ -404,12 +404,13 @@ def _xy_std(t: Triangulated) -> float:
 
 def _pick_tips(hub: FloatArray, tips: list[Triangulated], blade_prior: float | None
                ) -> list[Triangulated]:
-    """The tips at a common distance from the hub (within 12 %; the prior's when given),
-    at most three, best supported first."""
+    """The tips at a common distance from the hub (within 12 %; with a prior, within 25 %
+    of it), at most three, best supported first."""
     if not tips:
         return []
     dist = np.array([np.linalg.norm(t.point - hub) for t in tips])
-    centres = [blade_prior] if blade_prior is not None else dist.tolist()
+    centres = [c for c in dist.tolist()
+               if blade_prior is None or abs(c - blade_prior) < 0.25 * blade_prior]
     best: list[int] = []
     for c in centres:
         idx = [i for i in range(len(tips)) if abs(dist[i] - c) < 0.12 * c and dist[i] > 3.0]
