@@ -216,8 +216,7 @@ INIT_SIZE_ERROR = 0.15
 
 
 def init_start(flight: Any, mode: str, rng: np.random.Generator) -> TurbineParams:
-    """The turbine ``turbinefit init`` estimates for a sweep's flight (see
-    :data:`INIT_MODES`)."""
+    """The turbine ``turbinefit init`` estimates for a sweep's flight (:data:`INIT_MODES`)."""
     from turbinefit.solver.init import TurbinePrior, initial_turbine
 
     truth = flight.gt_turbine
