@@ -43,6 +43,14 @@ BIG = 300 << 20  # a sparse file above every text limit
 OK_ODOMETRY: Mutation = lambda f: shutil.copy(f / "keyframes.txt", f / "odometry.txt")  # noqa: E731
 
 
+def _blank_heatmaps(folder: Path) -> None:
+    """Every heat-map of the flight zero: the turbine is never seen."""
+    import numpy as np
+
+    for p in (folder / "heatmaps").glob("*.npy"):
+        np.save(p, np.zeros_like(np.load(p)))
+
+
 def _cases() -> list[Case]:
     c: list[Case] = []
 
@@ -76,8 +84,11 @@ def _cases() -> list[Case]:
     add("loop-camera.yaml", fit(), symlink("camera.yaml", "camera.yaml"), CAM, "cannot access")
 
     # -- missing files
-    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF), ("turbine.yaml", TURB)):
+    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF)):
         add(f"missing-{name}", fit(), unlink(name), pat, "missing")
+    # without turbine.yaml fit estimates it (turbinefit init): a turbine never seen is refused
+    add("missing-turbine.yaml-unseen", fit(), both(unlink("turbine.yaml"), _blank_heatmaps),
+        r"flight", r"cannot determine turbine: it is seen in 0 keyframe\(s\).*--near")
     add("missing-heatmap", fit(), unlink("heatmaps/2.000000.npy"), HM, r"missing", r"line 5")
     add("missing-folder", cmd("fit", "{w}/nothing", "--out", "{w}/out"), None, r"nothing",
         "not found")
@@ -347,3 +358,4 @@ def _cases() -> list[Case]:
 
 
 CASES: list[Case] = _cases()
+

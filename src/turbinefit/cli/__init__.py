@@ -31,6 +31,7 @@ EXIT_INTERRUPTED = 130
 #: Every command: name -> one line of help (the module is ``turbinefit.cli.<name>``).
 COMMANDS: dict[str, str] = {
     "simulate": "write a simulated flight folder with ground truth",
+    "init": "estimate the initial turbine.yaml of a flight from its images",
     "fit": "optimise poses and turbine of a flight folder",
     "track": "replay a flight keyframe by keyframe (in-flight tracking)",
     "experiment": "Monte Carlo studies of the paper (simulated flights)",

@@ -88,6 +88,14 @@ def turbine_line(th: Any) -> str:
             f"{th.blade_length:.2f} m")
 
 
+def init_line(init: Any) -> str:
+    """The line ``fit`` and ``track`` print when they estimated the initial turbine
+    (an :class:`~turbinefit.jobs.init.InitSummary`)."""
+    return (f"no turbine.yaml: initial turbine estimated from the images (turbinefit init) "
+            f"from {init.keyframes_seen} of {init.keyframes} keyframes in {init.seconds:.2f} s; "
+            f"{turbine_line(init.turbine).removeprefix('turbine: ')}")
+
+
 def verdict_line(verdict: str, std: Any) -> str:
     """The verdict and theta's standard deviations (``std``: (7,) or None), in one line."""
     if std is None:

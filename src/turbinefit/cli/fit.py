@@ -14,6 +14,7 @@ from turbinefit.cli.common import (
     add_photo_options,
     detect_options,
     fit_base_and_options,
+    init_line,
     pair_frame_report,
     turbine_line,
     verdict_line,
@@ -85,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
               f"{r.rounds} round(s), {r.termination}")
         if report.summary.defaults is not None:
             print(f"options: the defaults for {report.summary.defaults}")
+        if report.summary.init is not None:
+            print(init_line(report.summary.init))
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
         print(pair_frame_report(base, options, r.config))
         print(turbine_line(r.turbine))
