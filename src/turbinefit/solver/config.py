@@ -14,8 +14,8 @@ UnaryKind = Literal["interp", "corr", "none"]
 Gauge = Literal["first", "gps"]
 PairFrame = Literal["auto", "measured", "estimated"]
 
-#: Width [px] of the heat-maps the pixel settings of :class:`FitConfig` are stated for:
-#: ``[px at 320]`` is a pixel of maps 320 px wide (the net's and the simulator's maps).
+#: Width [px] of the heat-maps the pixel settings of :class:`FitConfig` are stated for
+#: (``[px of maps 320 px wide]``; the net's and the simulator's maps).
 REFERENCE_WIDTH = 320
 #: The settings in pixels at :data:`REFERENCE_WIDTH`, which follow the maps' scale
 #: (:attr:`FitConfig.pixel_scale`); ``robust_scale`` is in units of the whitened residual,
@@ -32,8 +32,8 @@ def pixel_scale_for(width: int) -> float:
 
 @dataclass(frozen=True)
 class FitConfig:
-    """How a flight is fitted. Units: metres [m], degrees [deg] as named; [px at 320]:
-    pixels of heat-maps 320 px wide, multiplied by ``pixel_scale`` into the maps' pixels
+    """How a flight is fitted. Units: metres [m], degrees [deg] as named; pixel settings in
+    [px of maps 320 px wide], multiplied by ``pixel_scale`` into the maps' pixels
     (maps four times as wide are searched over the same part of the view, in the same
     angle)."""
 
@@ -57,8 +57,8 @@ class FitConfig:
     lambda_pair: float = 1.0
     """Weight lambda of the pairwise (relative-pose) term."""
     pixel_sigma: float = 0.5
-    """Correspondence noise [px at 320]: correspondence residuals are divided by it (sub-pixel
-    peaks of sharp heat-maps; raise it for a coarse CNN)."""
+    """Correspondence noise [px of maps 320 px wide]: correspondence residuals are divided
+    by it (sub-pixel peaks of sharp heat-maps; raise it for a coarse CNN)."""
     pair_sigma_t: float = 0.1
     """Default information matrix: std. dev. of a relative translation [m] per axis."""
     pair_sigma_r_deg: float = 0.1
@@ -80,9 +80,11 @@ class FitConfig:
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
     corr_radius: float = 20.0
-    """Radius of the circular window searched for point correspondences [px at 320]."""
+    """Radius of the circular window searched for point correspondences [px of maps 320 px
+    wide]."""
     line_search: float = 20.0
-    """Half-length of the perpendicular search for line correspondences [px at 320]."""
+    """Half-length of the perpendicular search for line correspondences [px of maps 320 px
+    wide]."""
     line_residual: Literal["point", "normal"] = "point"
     """Residual of a line correspondence (lines=corr): point, the 2-D distance to the
     point found by the perpendicular search (the paper's E_unary(1), which also resists
@@ -93,7 +95,8 @@ class FitConfig:
     """Floor eps of the interp cost -log((G + eps) / (1 + eps)): heat-map values below it
     count as background (robustness to low-level CNN noise); >= 1e-4."""
     border_margin: float = 8.0
-    """Width over which heat-map evidence fades out at the image border [px at 320]."""
+    """Width over which heat-map evidence fades out at the image border [px of maps 320 px
+    wide]."""
     robust: Literal["none", "huber", "cauchy"] = "huber"
     """Robust loss on the image terms."""
     robust_scale: float = 2.0
@@ -119,8 +122,8 @@ class FitConfig:
     warmup_iterations: int = 4
     """Levenberg-Marquardt iterations per warm-up round."""
     warmup_pixel_sigma: float = 2.0
-    """Correspondence noise of the warm-up stages [px at 320] (their Huber loss bends at 2x
-    it)."""
+    """Correspondence noise of the warm-up stages [px of maps 320 px wide] (their Huber loss
+    bends at 2x it)."""
     warmup_function_tolerance: float = 1e-2
     """A warm-up round stops at the first accepted step that lowers its cost by less than
     this fraction (the warm-up only has to reach the configured cost's basin: measured on
@@ -142,10 +145,10 @@ class FitConfig:
     geometry: TurbineGeometry = field(default_factory=TurbineGeometry)
     """Fixed shape details (shaft tilt, blade cone, hub offset); zeros = the paper's model."""
     pixel_scale: float | None = None
-    """Factor from the [px at 320] settings to the heat-maps' pixels (the searches' sample
-    spacing grows with it too); unset (auto): the maps' width / 320, at least 1 (maps up
-    to 320 px wide use the values as written). fit, FitProblem and the Tracker resolve it
-    and record the factor used (config.yaml)."""
+    """Factor from the settings in [px of maps 320 px wide] to the heat-maps' own pixels
+    (the searches' sample spacing grows with it too); unset (auto): the maps' width / 320,
+    at least 1 (maps up to 320 px wide use the values as written). fit, FitProblem and
+    the Tracker resolve it and record the factor used (config.yaml)."""
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
