@@ -73,7 +73,7 @@ class SimConfig:
             (default: the paper's model).
         heatmap_sigma: blob / ridge standard deviation [px] at 320 px width; scaled with
             the heat-maps' width ``/ 320`` (as are the false streaks' lengths of
-            ``heatmap_noise``).
+            ``heatmap_noise``, and the block its pixel noise is drawn per).
         heatmap_noise: heat-map imperfections.
         drift_pos_m: RMS position drift of the initial poses at the last keyframe [m].
         drift_rot_deg: RMS orientation drift of the initial poses at the last keyframe
@@ -160,14 +160,16 @@ class SimConfig:
 
     def render_config(self) -> RenderConfig:
         """Heat-map rendering settings: blob and ridge sigma and the false streaks' lengths
-        scaled to the heat-maps' width (``/ 320``), so that maps of one view at any size
-        are the same picture at a different resolution."""
+        scaled to the heat-maps' width (``/ 320``), and above 320 px the pixel noise drawn
+        per block of that many pixels, so that maps of one view at any size are the same
+        picture at a different resolution."""
         k = self.heatmap_camera().width / 320.0
         noise = self.heatmap_noise
         if k != 1.0:
             lo, hi = noise.spurious_length_px
             noise = replace(noise, spurious_length_px=(lo * k, hi * k))
-        return RenderConfig(sigma_px=self.heatmap_sigma * k, noise=noise)
+        return RenderConfig(sigma_px=self.heatmap_sigma * k, noise=noise,
+                            noise_block=max(1, round(k)))
 
 
 #: Named scenarios.
