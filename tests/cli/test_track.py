@@ -67,8 +67,8 @@ def test_track_writes_causal_and_final_estimates(sim_flight_dir: Path, tmp_path:
     assert summary["num_keyframes"] == N_KEYFRAMES
     assert summary["config"]["tracker"]["window"] == 5
     # pair_frame="auto" resolved by the first keyframe: no odometry.txt, GPS/IMU keyframes
-    assert FitConfig.from_dict(summary["config"]["fit"]) == FitConfig(pair_frame="measured",
-                                                                      **FILE_FIT_DEFAULTS)
+    assert FitConfig.from_dict(summary["config"]["fit"]) == FitConfig(
+        pair_frame="measured", pixel_scale=1.0, **FILE_FIT_DEFAULTS)
     assert summary["latency"]["median_ms"] == pytest.approx(float(np.median(rows[:, 1])), abs=1e-3)
     acc = summary["accuracy"]
     assert acc["final"]["model_point_error_m"] < acc["initial"]["model_point_error_m"]

@@ -241,9 +241,10 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
         else:
             kw["type"] = _integer if kind is int else number
             kw["metavar"] = "N" if kind is int else "X"
+        shown = "auto" if value is None else value  # unset: resolved from the data
         group.add_argument(*flags, dest=f.name, default=None,
                            help=f"{text} (default: {value:g})" if isinstance(value, float)
-                           else f"{text} (default: {value})", **kw)
+                           else f"{text} (default: {shown})", **kw)
 
 
 def fit_option_names(args: argparse.Namespace) -> dict[str, Any]:
