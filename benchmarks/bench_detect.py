@@ -58,6 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from common import run_command
 
 from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
 from turbinefit.eval.detection import DetectionStats
@@ -185,8 +186,7 @@ def fit(flight: Path, extra: list[str]) -> dict:
     with tempfile.TemporaryDirectory(dir=DATA) as tmp:
         out = Path(tmp) / "fit"
         t0 = time.perf_counter()
-        subprocess.run([str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", "--quiet",
-                        *extra], check=True)
+        run_command(["fit", str(flight), "--out", str(out), "--no-plots", "--quiet", *extra])
         wall = time.perf_counter() - t0
         s = json.loads((out / "summary.json").read_text())
     acc = s["accuracy"]["after"]

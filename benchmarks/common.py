@@ -28,6 +28,22 @@ def simulate(n: int, seed: int, odometry: str = "gps") -> Path:
     return out
 
 
+#: Exit statuses of a command that ran and wrote its outputs: 0, and 3 for a `fit` or
+#: `track` whose verdict is `failed` (a result to record, not a crash of the benchmark).
+RAN = (0, 3)
+
+
+def run_command(argv: list[str], **kwargs: object) -> subprocess.CompletedProcess:
+    """``turbinefit ARGV...`` in a child process (``subprocess.run`` keywords); raises
+    ``RuntimeError`` with its stderr unless it exits with a status of :data:`RAN`."""
+    kwargs.setdefault("stderr", subprocess.PIPE)
+    proc = subprocess.run([str(BIN), *argv], text=True, **kwargs)  # type: ignore[call-overload]
+    if proc.returncode not in RAN:
+        raise RuntimeError(f"turbinefit {' '.join(argv)} failed (exit status "
+                           f"{proc.returncode}): {(proc.stderr or '').strip()}")
+    return proc
+
+
 def warm(flight: Path) -> None:
     """Read every file once so that all runs see the page cache (as right after `simulate`)."""
     for p in flight.rglob("*"):
