@@ -170,7 +170,7 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                          "share a heat-map file", path=keyframes_file or folder)
     cache: dict[bytes, _Header] = {}
     stacked = None
-    scratch: NDArray[np.float32] | None = None
+    to_check: list[tuple[str, int]] = []
     maps: list[NDArray[np.float32]] = []
     if mmap:
         _raise_open_file_limit(len(names) + 64)
@@ -196,21 +196,51 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                 if stacked is None:
                     mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
                     maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
-                    # checked on a copy read into a scratch buffer: faster than faulting in
-                    # every page of the map, which then stays out of this process until the
-                    # solver reads it
-                    if scratch is None:
-                        scratch = np.empty(shape, dtype=np.float32)
-                    f.seek(offset)
-                    _read_into(f, scratch, fname)
-                    check_heatmap_values(scratch, fname)
+                    to_check.append((fname, offset))
                 else:
                     f.seek(offset)
                     _read_into(f, stacked[k], fname)
                     check_heatmap_values(stacked[k], fname)
             except OSError as e:
                 raise _os_error(e, len(names), fname) from e
+    _check_mapped_values(to_check, shape, len(names))
     return HeatmapStack(stacked if stacked is not None else maps)
+
+
+def _check_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
+                         total: int) -> None:
+    """:func:`check_heatmap_values` of memory-mapped files ``(name, data offset)``, each read
+    into a scratch buffer (faster than faulting in every page of its map, which then stays
+    out of this process until the solver reads it), on a few threads (reading and the
+    reductions release the GIL); the first bad file in keyframe order is the error."""
+    if not files:
+        return
+    from concurrent.futures import ThreadPoolExecutor
+    from threading import local
+
+    scratch = local()
+
+    def check(item: tuple[str, int]) -> None:
+        fname, offset = item
+        buf = getattr(scratch, "buf", None)
+        if buf is None:
+            buf = scratch.buf = np.empty(shape, dtype=np.float32)
+        try:
+            with open(fname, "rb", buffering=0) as f:  # a regular file: checked when opened
+                f.seek(offset)
+                _read_into(f, buf, fname)
+        except OSError as e:
+            raise _os_error(e, total, fname) from e
+        check_heatmap_values(buf, fname)
+
+    workers = min(4, os.cpu_count() or 1, len(files))
+    if workers == 1:
+        for item in files:
+            check(item)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        for _ in pool.map(check, files):  # raises the first error in order
+            pass
 
 
 def _read_into(f: io.RawIOBase, out: NDArray[np.float32], fname: str) -> None:
