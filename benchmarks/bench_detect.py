@@ -350,7 +350,7 @@ def main() -> None:
                     f"{q} {v:.2f}x" for q, v in sm["ratio_same_options_" + k].items()))
     RESULTS.mkdir(exist_ok=True)
     out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
-           "model": str(det.path), "flip": det.flip, "zoom": det.zoom,
+           "model": det.path.name, "flip": det.flip, "zoom": det.zoom,
            "threshold": det.info.threshold,
            "tip_threshold": det.info.tip_threshold, "tip_shift_px": det.tip_shift,
            "heldout": {"n": args.heldout, "seed": HELDOUT_SEED, "px": "input", **m_input},

@@ -100,8 +100,9 @@ def main() -> None:
         boxes.write_text("".join(",".join(r) + "\n" for r in rows))
         rep = evaluate_regions(root / "images", boxes=boxes, model=args.model,
                                sheet=DATA / "real_worst.png", overwrite=True, progress=True)
-    result: dict[str, object] = {"photos_dir": str(root), "n_per_class": args.n,
-                                 "model": str(rep.model), "grow": rep.grow,
+    model = Path(rep.model)
+    result: dict[str, object] = {"photos_dir": root.name, "n_per_class": args.n,
+                                 "model": model.name, "grow": rep.grow,
                                  "metrics": rep.summary}
     for name, m in rep.summary.items():
         print(f"{name:8s} {int(m['photos']):4d} photos: line mass inside the box grown by "
