@@ -38,7 +38,7 @@ COMMANDS: dict[str, str] = {
     "report": "rebuild an experiment's figures and report from its rows",
     "import": "make a flight folder from DJI photos or a ROS bag",
     "detect": "heat-maps of photos with the CNN (onnxruntime)",
-    "evaluate": "detection metrics of the CNN on labelled photos (COCO keypoints)",
+    "evaluate": "detection metrics of the CNN on labelled photos (keypoints, boxes, masks)",
     "train": "train the heat-map CNN on rendered photos (needs turbinefit[train])",
 }
 
