@@ -64,6 +64,7 @@ from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
 from turbinefit.eval.detection import DetectionStats
 from turbinefit.io.flight_folder import keyframe_images, read_flight
 from turbinefit.io.images import read_image
+from turbinefit.jobs.outputs import finite_json
 from turbinefit.sim.dataset import DATA_VERSION, DatasetSpec, build_dataset
 from turbinefit.sim.scenario import SimConfig
 from turbinefit.turbine.model import model_points
@@ -251,17 +252,6 @@ def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
     write_png(path, np.concatenate(rows, axis=0))
 
 
-def _nulls(obj: Any) -> Any:
-    """``obj`` with every non-finite float replaced by None."""
-    if isinstance(obj, dict):
-        return {k: _nulls(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_nulls(v) for v in obj]
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--heldout", type=int, default=500)
@@ -367,7 +357,7 @@ def main() -> None:
                    "unseen": summaries.get("unseen")}}
     # strict JSON: an undefined figure (NaN, such as a flight's tips in sight, which its
     # photos do not record) is written as null
-    (RESULTS / "bench_detect.json").write_text(json.dumps(_nulls(out), indent=2,
+    (RESULTS / "bench_detect.json").write_text(json.dumps(finite_json(out), indent=2,
                                                           allow_nan=False) + "\n")
     print(f"wrote {RESULTS / 'bench_detect.json'}")
 

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from turbinefit.jobs.outputs import finite_json
+
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
 RESULTS = HERE / "results"
@@ -53,20 +55,9 @@ def warm(flight: Path) -> None:
                     pass
 
 
-def _strict(obj: object) -> object:
-    """``obj`` with NaN and infinities as None (strict JSON: null)."""
-    if isinstance(obj, float):
-        return obj if obj == obj and abs(obj) != float("inf") else None
-    if isinstance(obj, dict):
-        return {k: _strict(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_strict(v) for v in obj]
-    return obj
-
-
 def write_json(path: Path, result: dict) -> None:
     """Write ``result`` to ``path`` atomically, as strict JSON (undefined numbers: null)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(_strict(result), indent=2, allow_nan=False) + "\n")
+    tmp.write_text(json.dumps(finite_json(result), indent=2, allow_nan=False) + "\n")
     os.replace(tmp, path)
