@@ -226,7 +226,7 @@ def _check_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
         if buf is None:
             buf = scratch.buf = np.empty(shape, dtype=np.float32)
         try:
-            with open(fname, "rb", buffering=0) as f:  # a regular file: checked when opened
+            with open_input(fname) as f:  # still a regular file, not waited on if not
                 f.seek(offset)
                 _read_into(f, buf, fname)
         except OSError as e:
