@@ -43,6 +43,7 @@ All failures are :class:`turbinefit.errors.InputError` naming the path concerned
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import errno
 import os
@@ -181,10 +182,6 @@ def reserve_output(path: StrPath) -> None:
     except OSError:
         return  # a folder we may not write to: check_output_dir says so
     _RESERVED[p] = lock
-    if len(_RESERVED) == 1:
-        import atexit
-
-        atexit.register(release_all_outputs)
     pid = _live_owner(p.parent, p.name)
     if pid is not None:
         release_output(p)
@@ -204,6 +201,9 @@ def release_all_outputs() -> None:
     """End every reservation of this process (at exit, and when a command ends)."""
     for p in list(_RESERVED):
         release_output(p)
+
+
+atexit.register(release_all_outputs)
 
 
 def _make_parent(path: Path) -> None:
