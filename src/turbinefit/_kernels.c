@@ -643,6 +643,26 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
     return 0;
 }
 
+/* Value check of heat-map files: the first of N keyframes (float32 arrays of `count`
+ * values at the addresses `maps`) holding a value outside [lo, hi] or a NaN, or N if none.
+ * One pass over the data on all threads (the caller names the file and value). */
+TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t count,
+                                        double lo, double hi) {
+    const float flo = (float)lo, fhi = (float)hi;
+    int64_t first_bad = INT64_MAX;
+#pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        const float *p = (const float *)(uintptr_t)maps[n];
+        int bad = 0;
+        for (int64_t i = 0; i < count; i++) {
+            const float v = p[i];
+            bad |= !(v >= flo) | !(v <= fhi); /* NaN fails both */
+        }
+        if (bad && n < first_bad) first_bad = n;
+    }
+    return first_bad == INT64_MAX ? N : first_bad;
+}
+
 TF_EXPORT int64_t tf_num_threads(void) {
 #ifdef _OPENMP
     return omp_get_max_threads();

@@ -70,6 +70,8 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_project.argtypes = [_int, _int, _f64, _f64, _int, _int, _f64, _int, _f64, _u8, _u8]
     lib.tf_num_threads.restype = _int
     lib.tf_num_threads.argtypes = []
+    lib.tf_first_out_of_range.restype = _int
+    lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _dbl, _dbl]
 
 
 _LIB = _load()
@@ -84,6 +86,16 @@ def available() -> bool:
 def num_threads() -> int:
     """OpenMP threads the kernels use (1 without OpenMP or without the kernels)."""
     return int(_LIB.tf_num_threads()) if _LIB is not None else 1
+
+
+def first_out_of_range(maps: NDArray[np.uint64], count: int, lo: float, hi: float) -> int:
+    """Index of the first of ``len(maps)`` float32 arrays (``count`` values at each address of
+    ``maps``) holding a NaN or a value outside [``lo``, ``hi``] (compared in float32), or
+    ``len(maps)`` if none; all threads, one pass (``tf_first_out_of_range``). Its numpy twin
+    is :func:`turbinefit.io.heatmap_files.check_heatmap_values` applied in turn."""
+    assert _LIB is not None
+    return int(_LIB.tf_first_out_of_range(len(maps), _c(maps, np.uint64), int(count),
+                                          float(lo), float(hi)))
 
 
 def _check(bad: int, keyframes: NDArray[np.int_]) -> None:

@@ -203,18 +203,41 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                     check_heatmap_values(stacked[k], fname)
             except OSError as e:
                 raise _os_error(e, len(names), fname) from e
-    _check_mapped_values(to_check, shape, len(names))
-    return HeatmapStack(stacked if stacked is not None else maps)
+    stack = HeatmapStack(stacked if stacked is not None else maps)
+    if to_check:
+        _check_mapped_values(stack, to_check, shape, len(names))
+    return stack
 
 
-def _check_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
-                         total: int) -> None:
-    """:func:`check_heatmap_values` of memory-mapped files ``(name, data offset)``, each read
-    into a scratch buffer (faster than faulting in every page of its map, which then stays
-    out of this process until the solver reads it), on a few threads (reading and the
-    reductions release the GIL); the first bad file in keyframe order is the error."""
-    if not files:
+def _check_mapped_values(stack: HeatmapStack, files: list[tuple[str, int]],
+                         shape: tuple[int, ...], total: int) -> None:
+    """:func:`check_heatmap_values` of the memory-mapped files ``(name, data offset)`` of
+    ``stack``; the first bad file in keyframe order is the error. With the compiled
+    kernels, one pass over the maps themselves on all threads
+    (:func:`turbinefit._native.first_out_of_range`; the pages it faults in are the ones the
+    solver reads next), the message from :func:`check_heatmap_values` of the file it
+    names; else each file is read into a scratch buffer on a few threads (faster in numpy
+    than two reductions over its memory map)."""
+    from turbinefit import _native
+
+    pointers = stack.pointers()
+    if _native.available() and pointers is not None:
+        lo, hi = -VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE
+        start = 0
+        while start < len(pointers):
+            k = start + _native.first_out_of_range(pointers[start:], math.prod(shape), lo, hi)
+            if k < len(pointers):
+                check_heatmap_values(stack[k], files[k][0])  # raises, naming the value
+            start = k + 1
         return
+    _read_mapped_values(files, shape, total)
+
+
+def _read_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
+                        total: int) -> None:
+    """The numpy value check of memory-mapped files: each read into a scratch buffer (faster
+    than faulting in every page of its map for two reductions), on a few threads (reading
+    and the reductions release the GIL)."""
     from concurrent.futures import ThreadPoolExecutor
     from threading import local
 
