@@ -20,12 +20,19 @@
   on its 160 x 120 grid against the targets and true points, with distances in pixels of
   the photo and in pixels at 320 px (``px_scale``): median point errors, tip recall and
   precision (matched within 5 px at 320 px, whatever the photo), line IoU.
+* **Fits from photos** (``--photos N``): N flights (seeds 20, 21, ...) with 1280 x 960
+  photos (``turbinefit simulate --images``, cached under ``benchmarks/data/``), each
+  fitted as ``fit`` does with no options from its ideal 320 x 240 maps and from its
+  photos with the net at each ``--input-scales`` (1: the shipped detector; 2: the net
+  run at 640 x 480, :class:`~turbinefit.detect.DetectOptions` ``input_scale``), the
+  ratio of each to the ideal fit, and the tracker's causal estimates from the photos
+  against the initial poses.
 
 Usage::
 
     python benchmarks/bench_resolution.py [--seeds 0 ... 11] [--keyframes 200]
         [--sizes 320 1280] [--large-keyframes 20] [--large-seeds 0]
-        [--detect 100] [--detect-large 10]
+        [--detect 100] [--detect-large 10] [--photos 12 [--input-scales 1 2]]
 
 Prints the figures and writes ``benchmarks/results/bench_resolution.json``.
 """
@@ -36,15 +43,18 @@ import argparse
 import dataclasses
 import platform
 import statistics
+import subprocess
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from common import DATA, RESULTS, write_json
+from common import BIN, DATA, RESULTS, write_json
 
+from turbinefit.detect import DetectOptions
 from turbinefit.eval.metrics import accuracy
-from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
+from turbinefit.io.flight_folder import read_flight_folder
+from turbinefit.jobs.sources import FILE_FIT_DEFAULTS, FileHeatmaps, PhotoHeatmaps, fit_config_for
 from turbinefit.sim.scenario import SimConfig, simulate_flight
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import fit
@@ -53,6 +63,8 @@ from turbinefit.solver.fit import fit
 SIZES = {320: 240, 1280: 960, 5280: 3956}
 LARGE = 5280
 HELDOUT_SEED = 777_777
+#: First seed of the flights with 1280 x 960 photos.
+PHOTO_SEED = 20
 
 
 def fit_flight(seed: int, n: int, width: int, scales: list[float | None]) -> list[dict[str, Any]]:
@@ -113,6 +125,55 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                                  "solve_s")},
                     "worst_position_m": max(r["position_m"] for r in sel)})
     return out
+
+
+def photo_flight(seed: int, n: int) -> Path:
+    """The flight ``seed`` with 1280 x 960 photos (``turbinefit simulate --images``; maps
+    at 320 x 240, the default), simulated once into ``benchmarks/data/``."""
+    out = DATA / f"flight_images1280_n{n}_s{seed}"
+    if not (out / "keyframes.txt").exists():
+        DATA.mkdir(exist_ok=True)
+        subprocess.run([str(BIN), "simulate", str(out), "--keyframes", str(n), "--seed",
+                        str(seed), "--width", "1280", "--height", "960", "--images",
+                        "--overwrite", "--quiet"], check=True)
+    return out
+
+
+def fit_photos(seed: int, n: int, input_scales: list[float], track_causal: bool
+               ) -> list[dict[str, Any]]:
+    """Flight ``seed`` with 1280 x 960 photos fitted as ``fit`` does with no options: from
+    its ideal 320 x 240 maps, and from its photos with the net run at each input scale
+    (1: the shipped detector, test-time zoom on; above 1: zoom off, maps that many times
+    larger); with ``track_causal``, the tracker's causal estimates from the photos at
+    scale 1 against the initial poses."""
+    from bench_defaults import track
+
+    folder = read_flight_folder(photo_flight(seed, n))
+    sources: list[tuple[str, Any]] = [("ideal 320", FileHeatmaps(folder, mmap=False))]
+    sources += [(f"photos x{s:g}", PhotoHeatmaps(folder, options=DetectOptions(
+        zoom=None if s == 1 else False, input_scale=s))) for s in input_scales]
+    rows = []
+    for name, source in sources:
+        t0 = time.perf_counter()
+        flight = folder.flight(source.stack(), source.camera)
+        load_s = time.perf_counter() - t0
+        assert flight.gt_world_T_cam is not None and flight.gt_turbine is not None
+        res = fit(flight, fit_config_for(source))
+        acc = accuracy(res.world_T_cam, res.turbine, flight.gt_world_T_cam, flight.gt_turbine)
+        row = {"seed": seed, "source": name, "position_m": acc.position_error_m,
+               "orientation_deg": acc.orientation_error_deg,
+               "model_point_m": acc.model_point_error_m, "load_s": load_s,
+               "verdict": res.verdict}
+        if track_causal and name == "photos x1":
+            t = track(flight, fit_config_for(source))
+            row["causal_better_than_initial_after_20"] = t["causal_better_than_initial_after_20"]
+        rows.append(row)
+        print(f"  seed {seed:2d} {name:11s} position {row['position_m']:.3f} m, orientation "
+              f"{row['orientation_deg']:.3f} deg, model points {row['model_point_m']:.3f} m"
+              + (f", causal better {row['causal_better_than_initial_after_20']:.2f}"
+                 if "causal_better_than_initial_after_20" in row else "")
+              + f" (load {load_s:.1f} s)", flush=True)
+    return rows
 
 
 def heldout_view_photo(index: int, width: int) -> tuple[Any, Any]:
@@ -183,7 +244,8 @@ DETECT_KEYS = ("hub_median_px", "tower_top_median_px", "base_median_px", "tips_r
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(12)))
+    ap.add_argument("--seeds", type=int, nargs="*", default=list(range(12)),
+                    help="flights of the fits from ideal maps (none: skip them)")
     ap.add_argument("--keyframes", type=int, default=200)
     ap.add_argument("--sizes", type=int, nargs="+", default=[320, 1280], choices=[320, 1280])
     ap.add_argument("--large-keyframes", type=int, default=20,
@@ -193,6 +255,12 @@ def main() -> None:
                     help="held-out photos at 320 x 240 and 1280 x 960 (0: none)")
     ap.add_argument("--detect-large", type=int, default=10,
                     help="held-out photos at 5280 x 3956 (0: none)")
+    ap.add_argument("--photos", type=int, default=0,
+                    help="flights with 1280 x 960 photos (seeds 20, 21, ...) fitted from "
+                         "ideal 320 x 240 maps and from their photos (0: none)")
+    ap.add_argument("--input-scales", type=float, nargs="+", default=[1.0, 2.0],
+                    help="net input scales of the photo fits")
+    ap.add_argument("--no-track", action="store_true", help="photo fits without the tracker")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_resolution.json")
     args = ap.parse_args()
 
@@ -229,10 +297,32 @@ def main() -> None:
         for unit in ("photo_px", "px_at_320"):
             print(f"  {unit:9s} " + ", ".join(f"{k} {d[unit][k]:.3f}" for k in DETECT_KEYS))
 
+    photo_rows: list[dict[str, Any]] = []
+    photo_summary: dict[str, Any] = {}
+    if args.photos > 0:
+        print(f"\nfits with no options of {args.photos} flights with 1280x960 photos")
+        for seed in range(PHOTO_SEED, PHOTO_SEED + args.photos):
+            photo_rows += fit_photos(seed, args.keyframes, args.input_scales, not args.no_track)
+        ideal = {r["seed"]: r for r in photo_rows if r["source"] == "ideal 320"}
+        for name in dict.fromkeys(r["source"] for r in photo_rows):
+            sel = [r for r in photo_rows if r["source"] == name]
+            means = {k: statistics.fmean(r[k] for r in sel)
+                     for k in ("position_m", "orientation_deg", "model_point_m")}
+            for k in ("position_m", "model_point_m"):  # ratio of means to the ideal fits'
+                means[f"{k}_over_ideal"] = means[k] / statistics.fmean(
+                    ideal[r["seed"]][k] for r in sel)
+            causal = [r["causal_better_than_initial_after_20"] for r in sel
+                      if "causal_better_than_initial_after_20" in r]
+            if causal:
+                means["causal_better_than_initial_after_20"] = statistics.fmean(causal)
+            photo_summary[name] = means
+            print(f"  {name:11s} " + ", ".join(f"{k} {v:.3f}" for k, v in means.items()))
+
     write_json(args.out, {
         "machine": platform.platform(), "args": {k: v for k, v in vars(args).items()
                                                  if k != "out"},
         "fit_rows": rows, "fit_summary": summary, "detection": detect,
+        "photo_rows": photo_rows, "photo_summary": photo_summary,
         "config": dataclasses.asdict(FitConfig(**FILE_FIT_DEFAULTS))})
     print(f"\nwrote {args.out}")
 
