@@ -26,7 +26,7 @@ from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_fit_config
 from turbinefit.io.flight_folder import read_flight_folder
-from turbinefit.io.georef import read_flight_georef, write_georef_outputs
+from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.init import InitSummary, estimate_turbine
@@ -229,8 +229,9 @@ def fit_folder(
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
         write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT,
                            std=None if result.signals is None
-                           else result.signals.theta_std_dict())
-        write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam, result.turbine)
+                           else result.signals.theta_std_dict(),
+                           extra=location_text(georef, result.turbine))
+        write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()

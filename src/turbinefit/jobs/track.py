@@ -28,13 +28,13 @@ from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
 from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
-from turbinefit.io.georef import read_flight_georef, write_georef_outputs
+from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
 from turbinefit.jobs.init import InitSummary, estimate_turbine
 from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
-from turbinefit.jobs.sources import PhotoHeatmaps, fit_config_for, open_heatmaps
+from turbinefit.jobs.sources import fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
 from turbinefit.solver.verdict import ImageEvidence, Signals, image_evidence, judge, measure
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_point_error
@@ -277,7 +277,7 @@ def track_folder(
     summary = TrackSummary(
         str(flight_dir), n, (source.camera.width, source.camera.height),
         (f"{source.description} (as each keyframe arrives; its latency includes detection)"
-         if isinstance(source, PhotoHeatmaps) else source.description),
+         if source.detects else source.description),
         cfg, LatencyStats.of(latency, cfg.window),
         float(np.mean([e.iterations for e in tracker.estimates])),
         tracker.theta_prior_active, initial_turbine, turbine,
@@ -306,8 +306,8 @@ def track_folder(
                   comment="turbinefit track: each keyframe's estimate when it arrived")
         write_tum(tmp / "keyframes.txt", folder.timestamps, final_poses)
         write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT,
-                           std=summary.final_sigma)
-        write_georef_outputs(tmp, georef, folder.timestamps, final_poses, turbine)
+                           std=summary.final_sigma, extra=location_text(georef, turbine))
+        write_georef_outputs(tmp, georef, folder.timestamps, final_poses)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))
         write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)
