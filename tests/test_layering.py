@@ -84,7 +84,7 @@ def test_top_level_help_loads_no_command() -> None:
 
 @pytest.mark.parametrize(("argv", "must_not"), [
     (["fit", "--help"], ("turbinefit.detect", "turbinefit.sim", "turbinefit.train",
-                         "turbinefit.jobs", "turbinefit.cli.track", "onnxruntime",
+                         "turbinefit.jobs", "turbinefit.cli.track", "onnxruntime", "pygltflib",
                          "matplotlib", "torch")),
     (["detect", "--help"], ("turbinefit.solver", "turbinefit.sim", "turbinefit.jobs",
                             "onnxruntime", "torch", "matplotlib")),

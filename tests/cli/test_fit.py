@@ -18,6 +18,7 @@ from support import (
     FIT_OUTPUTS,
     N_KEYFRAMES,
     assert_one_line_error,
+    assert_turbine_glb,
     assert_valid_png,
     digest,
     entries,
@@ -89,6 +90,8 @@ def test_fit_joint_with_plots(sim_flight_dir: Path, tmp_path: Path,
     assert summary["turbine"]["initial"] == pytest.approx(
         read_turbine_yaml(sim_flight_dir / "turbine.yaml").to_dict(), rel=1e-12)
     assert th.to_dict() != pytest.approx(summary["turbine"]["initial"])
+    # turbine.glb is that turbine, dressed (read back by an independent glTF reader)
+    assert_turbine_glb(out_dir / "turbine.glb", th, cfg.geometry)
 
     # ground truth exists, so accuracy before/after, and the joint fit improves the model
     acc = summary["accuracy"]

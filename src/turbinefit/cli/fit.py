@@ -27,9 +27,10 @@ on the heat-maps and the GPS/IMU relative poses: first two correspondence
 stages (align: the trajectory moves nearly rigidly; match: each keyframe), then
 the configured cost.
 
-Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs,
-iterations, timings, and errors before/after when ground truth exists),
-config.yaml (the resolved options) and plots. Every option of
+Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, turbine.glb (the fitted
+turbine as a 3-D model for any glTF viewer), summary.json (costs, iterations,
+timings, and errors before/after when ground truth exists), config.yaml (the
+resolved options) and plots. Every option of
 turbinefit.FitConfig can be set in a --config YAML file; command-line options
 override it."""
 

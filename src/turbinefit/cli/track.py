@@ -31,7 +31,8 @@ after each one and folds older keyframes into a prior (marginalisation). A live
 status line shows the keyframe, its update time and the current turbine.
 
 Writes OUT_DIR/causal.txt (TUM: each keyframe's estimate when it arrived),
-keyframes.txt and turbine.yaml (the final estimates, as fit writes them),
+keyframes.txt, turbine.yaml and turbine.glb (the final estimates, as fit writes
+them),
 latency.csv (timestamp,latency_ms), config.yaml, summary.json (latency figures;
 errors of the causal and final estimates when ground truth exists) and plots
 (latency.png, errors.png, scene.png). Fit options as for `turbinefit fit`."""

@@ -27,6 +27,7 @@ from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_fit_config
 from turbinefit.io.flight_folder import read_flight_folder
 from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
+from turbinefit.io.mesh import write_turbine_glb
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.init import InitSummary, estimate_turbine
@@ -162,10 +163,11 @@ def fit_folder(
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
     Writes ``keyframes.txt`` (optimised ``world_T_cam``, TUM), ``turbine.yaml`` (fitted
-    theta and its standard deviations), ``summary.json`` (:class:`FitSummary`, with the
-    verdict, its reasons and signals), ``config.yaml`` (the resolved options)
-    and, unless ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with
-    ground truth) and ``cost.png``. The outputs are written whatever the verdict
+    theta and its standard deviations), ``turbine.glb`` (the fitted turbine as a 3-D model,
+    :mod:`turbinefit.io.mesh`), ``summary.json`` (:class:`FitSummary`, with the verdict,
+    its reasons and signals), ``config.yaml`` (the resolved options) and, unless
+    ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with ground truth)
+    and ``cost.png``. The outputs are written whatever the verdict
     (``report.result.verdict``): a failed fit is kept for inspection.
 
     ``out_dir`` is checked before anything is read (:mod:`turbinefit.jobs.outputs`): not
@@ -232,6 +234,7 @@ def fit_folder(
                            else result.signals.theta_std_dict(),
                            extra=location_text(georef, result.turbine))
         write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam)
+        write_turbine_glb(tmp / "turbine.glb", result.turbine, result.config.geometry)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()

@@ -29,6 +29,7 @@ from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
 from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
 from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
+from turbinefit.io.mesh import write_turbine_glb
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
@@ -212,7 +213,8 @@ def track_folder(
 
     Writes into ``out_dir`` (atomically, checked as :func:`~turbinefit.jobs.fit.fit_folder`
     checks it): ``causal.txt`` (TUM: each keyframe's estimate when it arrived),
-    ``keyframes.txt`` and ``turbine.yaml`` (the final estimates, as ``fit`` writes them),
+    ``keyframes.txt``, ``turbine.yaml`` and ``turbine.glb`` (the final estimates, as ``fit``
+    writes them),
     ``latency.csv`` (``timestamp,latency_ms``), ``config.yaml``, ``summary.json``
     (:class:`TrackSummary`) and, unless ``plots=False``, ``latency.png``, ``errors.png``
     (with ground truth) and ``scene.png``.
@@ -308,6 +310,7 @@ def track_folder(
         write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT,
                            std=summary.final_sigma, extra=location_text(georef, turbine))
         write_georef_outputs(tmp, georef, folder.timestamps, final_poses)
+        write_turbine_glb(tmp / "turbine.glb", turbine, geometry)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))
         write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)

@@ -5,24 +5,13 @@ ellipsoid exactly; anti-aliased coverage, shading and depth-tested compositing, 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from turbinefit.sim.images.arrays import FloatArray, blend, column, dot3, matmul3, take_cols
 from turbinefit.sim.images.frame import NEAR, Frame
 from turbinefit.sim.images.scene import Scene
-from turbinefit.sim.images.turbine import TurbineSolid, blade_profile
-
-
-def _unit(v: FloatArray) -> FloatArray:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
-
-
-def _perp(e: FloatArray) -> FloatArray:
-    """A unit vector perpendicular to unit e."""
-    a = np.array([0.0, 0.0, 1.0]) if abs(e[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    return _unit(np.cross(e, a))
+from turbinefit.sim.images.turbine import TurbineSolid
+from turbinefit.turbine.solid import blade_profile, blade_twist
 
 
 class Painter:
@@ -76,8 +65,7 @@ class Painter:
             sb = np.zeros_like(u)
         else:
             A, B = blade_profile(u, tb.b)
-            beta = np.float32(self.sc.blade_pitch) + np.float32(math.radians(14.0)) * np.clip(
-                (1.0 - u) * np.float32(1 / 0.8), 0.0, 1.0) ** 1.5
+            beta = blade_twist(u, self.sc.blade_pitch)
             cb, sb = np.cos(beta), np.sin(beta)
         # view direction projected on the cross-section, in (chord, thickness) coordinates
         mc = (cb * Dc0 + sb * Dn0) * isq
@@ -261,8 +249,5 @@ class Painter:
                 L = float(np.linalg.norm(e))
                 if L < 1e-6:
                     continue
-                e = e / L
-                c0 = np.cross(tb.shaft, e)  # chord at zero pitch: in the rotor plane
-                nc = float(np.linalg.norm(c0))
-                c0 = c0 / nc if nc > 1e-9 else _perp(e)
-                self.tube(tb.hub, e, L, "blade", tb, c0)
+                # the chord at zero pitch: in the rotor plane
+                self.tube(tb.hub, e / L, L, "blade", tb, tb.chord_axis(i))
