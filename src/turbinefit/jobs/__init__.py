@@ -7,6 +7,7 @@
 * :mod:`turbinefit.jobs.evaluate` -- :func:`evaluate_labels`
 * :mod:`turbinefit.jobs.import_dji` -- :func:`import_dji` (DJI photos to a flight folder)
 * :mod:`turbinefit.jobs.import_rosbag` -- :func:`import_rosbag` (a ROS bag to a flight folder)
+* :mod:`turbinefit.jobs.coverage` -- :func:`coverage_folder` (what each keyframe of a fit shows)
 
 Shared: :mod:`turbinefit.jobs.sources` (where a flight's heat-maps come from: files or
 photos) and :mod:`turbinefit.jobs.outputs` (the output-folder rules). Each job writes its
@@ -22,6 +23,8 @@ from typing import TYPE_CHECKING
 from turbinefit._lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from turbinefit.jobs.coverage import CoverageReport as CoverageReport
+    from turbinefit.jobs.coverage import coverage_folder as coverage_folder
     from turbinefit.jobs.detect import DetectReport as DetectReport
     from turbinefit.jobs.detect import detect_images as detect_images
     from turbinefit.jobs.evaluate import EvaluateReport as EvaluateReport
@@ -47,6 +50,7 @@ _WHERE = {name: f"turbinefit.jobs.{module}" for module, names in {
     "evaluate": ("evaluate_labels", "EvaluateReport"),
     "import_dji": ("import_dji", "DjiImportSummary"),
     "import_rosbag": ("import_rosbag", "RosbagOptions", "RosbagSummary"),
+    "coverage": ("coverage_folder", "CoverageReport"),
 }.items() for name in names}
 
 __all__ = sorted(_WHERE)
