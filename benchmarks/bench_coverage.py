@@ -11,6 +11,11 @@
   assumed 0 (a flat blade in the rotor plane). The same with the ground-truth poses and
   turbine separates the model's differences from the renderer (twist, tip, sub-pixel
   parts) from the fit's errors.
+* **Plan**: ``turbinefit plan`` of each fit at a 10 m stand-off and 2 mm/px for a 20 MP
+  camera (5280 x 3956, f = 7350 px: a 50 mm lens on a full-frame sensor), with the gimbal
+  free and limited to 30 deg up; then ``turbinefit coverage`` of photos at the planned
+  poses of the *true* turbine (the flight flown exactly): per blade side the fraction of
+  the span seen at <= 2 mm/px (target >= 95 %), the path's length.
 * **Speed**: ``turbinefit coverage`` of the fit of a 1000-keyframe flight, process start
   to exit (target < 5 s), and the coverage computation alone.
 
@@ -27,6 +32,7 @@ import argparse
 import json
 import math
 import platform
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -35,8 +41,16 @@ from typing import Any
 import numpy as np
 from common import RESULTS, run_command, simulate, warm, write_json
 
-from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, blade_names, sector
-from turbinefit.io.camera_yaml import read_camera_yaml
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.inspection.surface import (
+    PARTS,
+    SurfaceShape,
+    TurbineSurface,
+    blade_names,
+    lookup_pixels,
+    sector,
+)
+from turbinefit.io.camera_yaml import read_camera_yaml, write_camera_yaml
 from turbinefit.io.flight_folder import read_flight_folder
 from turbinefit.io.tum import read_tum
 from turbinefit.io.turbine_yaml import read_turbine_yaml
@@ -52,8 +66,6 @@ def _counts(surface: TurbineSurface, poses: Any, gt: Any, gt_poses: Any, scene: 
             camera: Any, keyframes: list[int]) -> dict[str, int]:
     """Pixel counts of one flight: turbine pixels, part right; blade pixels, blade and
     side right, span within 0.5 m."""
-    from turbinefit.inspection.surface import lookup_pixels
-
     names = blade_names(gt)
     code_part = {1: PARTS.index("tower"), 2: PARTS.index("nacelle"), 3: PARTS.index("hub")}
     code_part |= {4 + i: PARTS.index(f"blade_{names[i]}") for i in range(3)}
@@ -85,10 +97,17 @@ def _counts(surface: TurbineSurface, poses: Any, gt: Any, gt_poses: Any, scene: 
     return c
 
 
-def lookup_flight(seed: int, every: int, root: Path) -> dict[str, Any]:
+def fit_of(seed: int, root: Path) -> tuple[Path, Path]:
+    """The default 200-keyframe flight of ``seed`` and its fit (made once)."""
     flight = simulate(200, seed)
     fit_dir = root / f"fit{seed}"
-    run_command(["fit", str(flight), "--out", str(fit_dir), "--no-plots", "--quiet"])
+    if not fit_dir.exists():
+        run_command(["fit", str(flight), "--out", str(fit_dir), "--no-plots", "--quiet"])
+    return flight, fit_dir
+
+
+def lookup_flight(seed: int, every: int, root: Path) -> dict[str, Any]:
+    flight, fit_dir = fit_of(seed, root)
     folder = read_flight_folder(flight)
     gt, gt_poses = folder.gt_turbine, folder.gt_world_T_cam
     assert gt is not None and gt_poses is not None
@@ -109,6 +128,37 @@ def lookup_flight(seed: int, every: int, root: Path) -> dict[str, Any]:
             ("truth_pitch_twist", TurbineSurface(gt, shape=shape), gt_poses)):
         row[name] = _counts(surface, p, gt, gt_poses, scene, camera, keyframes)
     return row
+
+
+#: The next flight's camera: 20 MP, a 50 mm lens on a full-frame sensor (a P1-like camera).
+CAMERA_20MP = PinholeCamera(5280, 3956, 7350.0, 7350.0, 2639.5, 1977.5)
+
+
+def plan_flight(seed: int, root: Path, gimbal_up: float) -> dict[str, Any]:
+    """``plan`` at 10 m and 2 mm/px from the fit, then ``coverage`` of photos taken at
+    the planned poses of the true turbine (the flight flown exactly)."""
+    flight, fit_dir = fit_of(seed, root)
+    cam = root / "camera20mp.yaml"
+    write_camera_yaml(cam, CAMERA_20MP)
+    plan = root / f"plan{seed}_{gimbal_up:g}"
+    t0 = time.perf_counter()
+    run_command(["plan", str(fit_dir), "--standoff", "10", "--gsd", "2", "--camera", str(cam),
+                 "--out", str(plan), "--max-gimbal-up", f"{gimbal_up:g}", "--quiet"])
+    seconds = time.perf_counter() - t0
+    sim = root / f"sim{seed}_{gimbal_up:g}"
+    sim.mkdir()
+    shutil.copy(plan / "keyframes.txt", sim / "keyframes.txt")
+    shutil.copy(flight / "turbine_groundtruth.yaml", sim / "turbine.yaml")
+    cov = root / f"cov{seed}_{gimbal_up:g}"
+    run_command(["coverage", str(sim), "--camera", str(cam), "--gsd", "2", "--out", str(cov),
+                 "--no-plots", "--quiet"])
+    ps = json.loads((plan / "summary.json").read_text())
+    cs = json.loads((cov / "summary.json").read_text())["coverage"]
+    return {"seed": seed, "gimbal_up_deg": gimbal_up, "plan_s": seconds,
+            "length_m": ps["length_m"], "photos": ps["photos"],
+            "min_rotor_clearance_m": ps["min_rotor_clearance_m"],
+            "covered": {part: {side: c["covered"] for side, c in sides.items()}
+                        for part, sides in cs.items()}}
 
 
 def speed(root: Path) -> dict[str, Any]:
@@ -141,8 +191,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         rows = [lookup_flight(s, args.every, root) for s in range(args.flights)]
+        plans = [plan_flight(s, root, up) for up in (90.0, 30.0) for s in range(args.flights)]
         sp = speed(root)
-    out: dict[str, Any] = {"machine": platform.platform(), "flights": rows, "speed": sp}
+    out: dict[str, Any] = {"machine": platform.platform(), "flights": rows, "speed": sp,
+                           "plans": plans}
     print(f"lookup on {args.flights} default 200-keyframe flights, one keyframe in {args.every}, "
           "320x240 labelled renders")
     print(f"{'variant':<20}{'part':>8}{'blade+side':>12}{'span<0.5m':>11}{'tower span':>12}")
@@ -157,6 +209,16 @@ def main() -> None:
         print(f"{name:<20}{t['part_pct']:7.2f}%{t['blade_side_pct']:11.2f}%"
               f"{t['span_pct']:10.2f}%{t['tower_span_pct']:11.2f}%")
     out["totals"] = totals
+    print("plan at 10 m, 2 mm/px, 20 MP camera; coverage of its photos of the true turbine")
+    for p in plans:
+        blades = [v for part, sides in p["covered"].items() if part != "tower"
+                  for v in sides.values()]
+        tower = list(p["covered"]["tower"].values())
+        print(f"seed {p['seed']} gimbal up to {p['gimbal_up_deg']:g} deg: {p['photos']} photos, "
+              f"path {p['length_m']:.0f} m, rotor clearance {p['min_rotor_clearance_m']:.2f} m, "
+              f"blade sides covered min {100 * min(blades):.1f} % mean "
+              f"{100 * np.mean(blades):.1f} %, tower faces min {100 * min(tower):.1f} %, "
+              f"planned in {p['plan_s']:.2f} s")
     print(f"coverage of 1000 keyframes: {sp['wall_s']:.2f} s wall with coverage.png "
           f"({sp['wall_no_plots_s']:.2f} s without), computing {sp['coverage_s']:.2f} s, "
           f"{sp['rows']} rows")

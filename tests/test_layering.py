@@ -101,6 +101,8 @@ def test_top_level_help_loads_no_command() -> None:
                               "torch", "matplotlib")),
     (["coverage", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
                               "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
+    (["plan", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
+                          "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
 ])
 def test_a_command_loads_only_what_it_uses(argv: list[str], must_not: tuple[str, ...]) -> None:
     loaded = _loaded(argv)

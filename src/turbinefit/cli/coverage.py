@@ -28,6 +28,8 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("fit_dir", metavar="FIT_DIR", type=Path, help="output folder of fit or track")
     p.add_argument("--flight", type=Path, default=None, metavar="FLIGHT_DIR",
                    help="the flight folder (its camera.yaml); default: the one summary.json names")
+    p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
+                   help="the photos' camera (camera_info YAML) instead of the flight's")
     p.add_argument("--out", type=Path, required=True, metavar="OUT_DIR", help="output folder")
     p.add_argument("--gsd", type=positive_number, default=2.0, metavar="MM",
                    help="a side counts as covered at this many mm per pixel or finer")
@@ -51,7 +53,13 @@ def run(args: argparse.Namespace) -> int:
             from turbinefit.errors import InputError
 
             raise InputError(f"must be within +-90 deg, got {value:g}", field=name)
-    report = coverage_folder(args.fit_dir, args.out, flight_dir=args.flight, step=args.step,
+    camera = None
+    if args.camera is not None:
+        from turbinefit.io.camera_yaml import read_camera_yaml
+
+        camera = read_camera_yaml(args.camera)
+    report = coverage_folder(args.fit_dir, args.out, flight_dir=args.flight, camera=camera,
+                             step=args.step,
                              max_gsd_mm=args.gsd, blade_pitch=math.radians(args.blade_pitch),
                              blade_twist=math.radians(args.blade_twist),
                              plots=not args.no_plots, overwrite=args.overwrite)

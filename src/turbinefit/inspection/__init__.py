@@ -9,6 +9,8 @@ Pure geometry above the core: it imports :mod:`turbinefit.geometry` and
 
 from turbinefit.inspection.coverage import Coverage as Coverage
 from turbinefit.inspection.coverage import flight_coverage as flight_coverage
+from turbinefit.inspection.plan import PlanOptions as PlanOptions
+from turbinefit.inspection.plan import plan_path as plan_path
 from turbinefit.inspection.surface import PixelHit as PixelHit
 from turbinefit.inspection.surface import SurfaceShape as SurfaceShape
 from turbinefit.inspection.surface import TurbineSurface as TurbineSurface

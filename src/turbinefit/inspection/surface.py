@@ -54,6 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
+from turbinefit.solver.init import normalized_rays
 from turbinefit.turbine.model import (
     BLADE_PERIOD,
     PAPER_GEOMETRY,
@@ -382,28 +383,6 @@ class RayHits:
     distance: FloatArray
 
 
-def pixel_rays(camera: PinholeCamera, uv: ArrayLike) -> FloatArray:
-    """Unit camera-frame rays (N, 3) of pixels ``uv`` (N, 2) (plumb_bob distortion undone
-    by fixed-point iteration, as the photo renderer casts its rays)."""
-    p = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    yd = (p[:, 1] - camera.cy) / camera.fy
-    xd = (p[:, 0] - camera.cx - camera.skew * yd) / camera.fx
-    x, y = xd.copy(), yd.copy()
-    if camera.has_distortion:
-        k1, k2, p1, p2, k3 = camera.distortion
-        r2max = float(camera.kernel_params()[-1])
-        for _ in range(20):
-            r2 = np.minimum(x * x + y * y, r2max)
-            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-            radial = np.where(np.abs(radial) < 0.2, 0.2, radial)
-            dx = 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-            dy = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-            x = (xd - dx) / radial
-            y = (yd - dy) / radial
-    d = np.stack([x, y, np.ones_like(x)], axis=-1)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-
 @dataclass(frozen=True)
 class PixelHit:
     """Where one pixel's ray meets the turbine (:func:`lookup_pixel`).
@@ -452,7 +431,8 @@ def lookup_pixels(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: S
                   uv: ArrayLike) -> tuple[RayHits, FloatArray]:
     """:func:`lookup_pixel` of many pixels ``uv`` (N, 2) of one photo, as arrays: the
     :class:`RayHits` and the world points hit (N, 3) (NaN where nothing is)."""
-    rays = pixel_rays(camera, uv) @ world_T_cam.rotation_matrix().T
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    rays = normalized_rays(camera, uv) @ world_T_cam.rotation_matrix().T
     origin = world_T_cam.translation
     hits = surface.cast_rays(origin[None, :], rays, 1.0 / math.sqrt(camera.fx * camera.fy))
     return hits, origin + hits.distance[:, None] * rays

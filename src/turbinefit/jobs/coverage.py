@@ -49,20 +49,21 @@ class FitOutput:
     """What a ``fit`` or ``track`` output folder says, with its flight's camera.
 
     Attributes:
-        fit_dir, flight_dir: the folders.
+        fit_dir, flight_dir: the folders (no flight if its camera was not needed and
+            ``summary.json`` names none that is there).
         timestamps, world_T_cam: the fitted keyframe poses.
         turbine: the fitted turbine; geometry: its fixed shape details (``config.yaml``).
-        camera: the photos' camera (the flight's ``camera.yaml``).
-        georef: the flight's ``georef.yaml`` (None: not georeferenced).
+        camera: the photos' camera (the flight's ``camera.yaml``; None without a flight).
+        georef: the flight's ``georef.yaml`` (None: not georeferenced or no flight).
     """
 
     fit_dir: Path
-    flight_dir: Path
+    flight_dir: Path | None
     timestamps: Any
     world_T_cam: SE3
     turbine: TurbineParams
     geometry: TurbineGeometry
-    camera: PinholeCamera
+    camera: PinholeCamera | None
     georef: Georef | None
 
 
@@ -101,12 +102,14 @@ def _flight_of(fit_dir: Path) -> Path:
 
 
 def read_fit_output(fit_dir: str | os.PathLike[str],
-                    flight_dir: str | os.PathLike[str] | None = None) -> FitOutput:
-    """Read a ``fit``/``track`` output folder and its flight's camera (see :class:`FitOutput`).
+                    flight_dir: str | os.PathLike[str] | None = None, *,
+                    need_camera: bool = True) -> FitOutput:
+    """Read a ``fit``/``track`` output folder and its flight's camera (see :class:`FitOutput`;
+    ``need_camera=False``: the flight is optional).
 
     Raises:
         InputError: a missing folder, ``keyframes.txt`` or ``turbine.yaml`` (the fitted
-            poses and turbine), a flight that cannot be found, or any bad file.
+            poses and turbine), a flight that cannot be found (when needed), or any bad file.
     """
     fit_dir = Path(fit_dir)
     if not fit_dir.is_dir():
@@ -117,8 +120,17 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
     traj = read_tum_lines(fit_dir / KEYFRAMES_FILE)
     turbine = read_turbine_yaml(fit_dir / TURBINE_FILE)
     geometry = _geometry(fit_dir / "config.yaml")
-    flight = Path(flight_dir) if flight_dir is not None else _flight_of(fit_dir)
-    camera = read_camera_yaml(flight / CAMERA_FILE)
+    flight: Path | None = Path(flight_dir) if flight_dir is not None else None
+    if flight is None:
+        try:
+            flight = _flight_of(fit_dir)
+        except InputError:
+            if need_camera:
+                raise
+    if flight is None:
+        return FitOutput(fit_dir, None, traj.timestamps, traj.poses, turbine, geometry, None,
+                         None)
+    camera = read_camera_yaml(flight / CAMERA_FILE) if need_camera else None
     return FitOutput(fit_dir, flight, traj.timestamps, traj.poses, turbine, geometry, camera,
                      read_flight_georef(flight))
 
@@ -160,7 +172,9 @@ def format_sides_csv(coverage: Coverage, timestamps: Any) -> str:
 
 
 @dataclass
-class _Summary:
+class MappingSummary:
+    """A summary that is already the mapping ``summary.json`` holds."""
+
     data: dict[str, Any]
 
     def to_dict(self) -> dict[str, Any]:
@@ -168,12 +182,14 @@ class _Summary:
 
 
 def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
-                    flight_dir: str | os.PathLike[str] | None = None, step: float = 0.5,
+                    flight_dir: str | os.PathLike[str] | None = None,
+                    camera: PinholeCamera | None = None, step: float = 0.5,
                     max_gsd_mm: float = 2.0, blade_pitch: float = 0.0,
                     blade_twist: float = 0.0, plots: bool = True,
                     overwrite: bool = False) -> CoverageReport:
     """What each keyframe of the fit in ``fit_dir`` shows (its fitted poses and turbine, the
-    photos' camera of ``flight_dir`` or the flight its ``summary.json`` names), written to
+    photos' ``camera``, by default that of ``flight_dir`` or of the flight its
+    ``summary.json`` names), written to
     ``out_dir``: ``coverage.csv``, ``sides.csv``, ``summary.json`` (per part and side the
     fraction of the span seen, and seen at ``max_gsd_mm`` mm/px or finer) and, unless
     ``plots=False``, ``coverage.png``. Parts are sampled every ``step`` m; blades have pitch
@@ -190,15 +206,19 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         raise InputError(f"must be a positive number, got {max_gsd_mm}", field="--gsd")
     inputs = [fit_dir] + ([] if flight_dir is None else [Path(flight_dir)])
     COVERAGE_OUTPUTS.check(out_dir, inputs, overwrite)
-    fit = read_fit_output(fit_dir, flight_dir)
-    check_not_input(out_dir, [fit.flight_dir])
+    fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
+    if fit.flight_dir is not None:
+        check_not_input(out_dir, [fit.flight_dir])
+    cam = camera or fit.camera
+    assert cam is not None
     surface = TurbineSurface(fit.turbine, fit.geometry,
                              SurfaceShape(blade_pitch=blade_pitch, blade_twist=blade_twist))
     t1 = time.perf_counter()
-    cov = flight_coverage(surface, fit.camera, fit.world_T_cam, step)
+    cov = flight_coverage(surface, cam, fit.world_T_cam, step)
     timings = {"load": t1 - t0, "coverage": time.perf_counter() - t1}
     summary = {
-        "turbinefit_version": __version__, "fit": str(fit_dir), "flight": str(fit.flight_dir),
+        "turbinefit_version": __version__, "fit": str(fit_dir),
+        "flight": None if fit.flight_dir is None else str(fit.flight_dir),
         "keyframes": len(fit.timestamps), "step_m": step, "max_gsd_mm_px": max_gsd_mm,
         "blade_pitch_deg": math.degrees(blade_pitch), "blade_twist_deg": math.degrees(blade_twist),
         "blades": {bl.name: {"model_blade": bl.model_index + 1,
@@ -219,5 +239,5 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
-        write_text_atomic(tmp / "summary.json", summary_json(_Summary(summary)), fsync=False)
+        write_text_atomic(tmp / "summary.json", summary_json(MappingSummary(summary)), fsync=False)
     return CoverageReport(cov, surface, out_dir, summary, timings)

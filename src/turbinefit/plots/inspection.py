@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,6 +13,8 @@ from turbinefit.plots.common import new_figure, save_png
 
 if TYPE_CHECKING:
     from turbinefit.inspection.coverage import Coverage
+    from turbinefit.inspection.plan import Plan
+    from turbinefit.inspection.surface import TurbineSurface
 
 #: Colour of span never seen.
 GAP_COLOUR = "#d9d9d9"
@@ -63,4 +65,47 @@ def plot_coverage(path: str | os.PathLike[str], coverage: Coverage, max_gsd_mm: 
                    loc="lower right", bbox_to_anchor=(1.0, 1.2))
     fig.subplots_adjust(left=0.13, right=0.86, top=1.0 - 0.7 / fig.get_figheight(),
                         bottom=0.06, hspace=0.75)
+    return save_png(fig, path)
+
+
+#: Colours of the photos of each part in the path figure (blades A, B, C, tower).
+PART_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#7f7f7f")
+
+
+def plot_path(path: str | os.PathLike[str], plan: Plan, surface: TurbineSurface) -> Path:
+    """The planned path round the turbine in 3-D (photos coloured by the part they show,
+    transit legs dashed) and from above."""
+    from turbinefit.inspection.surface import PARTS
+    from turbinefit.plots.common import line_polyline, skeleton_points
+
+    fig = new_figure(11.0, 5.5)
+    ax3: Any = fig.add_axes((0.0, 0.04, 0.58, 0.86), projection="3d")
+    ax2 = fig.add_axes((0.64, 0.12, 0.34, 0.76))
+    skel = line_polyline(skeleton_points(surface.turbine, surface.geometry))
+    pts = np.array([w.position for w in plan.waypoints]).reshape(-1, 3)
+    for ax, dims in ((ax3, (0, 1, 2)), (ax2, (0, 1))):
+        ax.plot(*(skel[:, i] for i in dims), color="black", lw=2.0)
+        ax.plot(*(pts[:, i] for i in dims), color="0.55", lw=0.7, ls="--")
+        for p in range(4):
+            q = np.array([w.position for w in plan.waypoints if w.part == p]).reshape(-1, 3)
+            if len(q) and len(dims) == 3:
+                ax3.scatter(q[:, 0], q[:, 1], q[:, 2], s=4, color=PART_COLOURS[p])
+            elif len(q):
+                ax2.scatter(q[:, 0], q[:, 1], s=4, color=PART_COLOURS[p],
+                            label=PARTS[p].replace("_", " "))
+    lo = np.minimum(pts.min(axis=0), skel[np.isfinite(skel[:, 0])].min(axis=0)) if len(pts) \
+        else np.zeros(3)
+    hi = np.maximum(pts.max(axis=0), np.nanmax(skel, axis=0)) if len(pts) else np.ones(3)
+    box = np.maximum(hi - lo, 1.0)
+    ax3.set_box_aspect(tuple(box))
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax2.set_aspect("equal")
+    ax2.set_xlabel("x [m]")
+    ax2.set_ylabel("y [m]")
+    ax2.legend(fontsize=7, loc="best")
+    fig.suptitle(f"{len(plan.photos)} photos, path {plan.length_m:.0f} m, "
+                 f"{plan.gsd_mm:.2f} mm/px; clearance: rotor {plan.min_rotor_clearance:.1f} m, "
+                 f"tower {plan.min_tower_clearance:.1f} m", fontsize=9)
     return save_png(fig, path)
