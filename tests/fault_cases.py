@@ -354,6 +354,23 @@ def _cases() -> list[Case]:
         r"character device")
     add("rosbag-missing", cmd(*bag), None, r"b\.bag", r"not found")
     add("rosbag-not-a-bag", cmd(*bag), write("b.bag", "not a bag"), r"b\.bag", r"ROS bag")
+
+    # -- coverage (a flight folder stands in for a fit folder: poses, turbine, camera)
+    cov = ("coverage", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
+    add("coverage-no-turbine", cmd(*cov), unlink("turbine.yaml"), TURB, r"without fitted turbine")
+    add("coverage-no-poses", cmd(*cov), unlink("keyframes.txt"), KF, r"without fitted poses")
+    add("coverage-no-summary", cmd("coverage", "{w}/flight", "--out", "{w}/out"), None,
+        r"summary\.json", r"--flight")
+    add("coverage-fifo-turbine", cmd(*cov), fifo("turbine.yaml"), TURB, "named pipe", hang=True)
+    plan = ("plan", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
+    add("plan-no-turbine", cmd(*plan, "--standoff", "10"), unlink("turbine.yaml"), TURB,
+        r"without fitted turbine")
+    add("plan-no-poses", cmd(*plan, "--standoff", "10"), unlink("keyframes.txt"), KF,
+        r"without fitted poses")
+    add("plan-standoff-meets-rotor", cmd(*plan, "--standoff", "500"), None, r"--standoff",
+        r"meets the rotor")
+    add("plan-gsd-unreachable", cmd(*plan, "--standoff", "10", "--gsd", "0.01"), None,
+        r"--gsd", r"mm/px at a stand-off of 10 m")
     return c
 
 

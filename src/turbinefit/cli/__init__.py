@@ -34,6 +34,8 @@ COMMANDS: dict[str, str] = {
     "init": "estimate the initial turbine.yaml of a flight from its images",
     "fit": "optimise poses and turbine of a flight folder",
     "track": "replay a flight keyframe by keyframe (in-flight tracking)",
+    "coverage": "what each keyframe of a fit shows of each blade and the tower, at what mm/px",
+    "plan": "waypoints of the next inspection flight round a fitted turbine",
     "experiment": "Monte Carlo studies of the paper (simulated flights)",
     "report": "rebuild an experiment's figures and report from its rows",
     "import": "make a flight folder from DJI photos or a ROS bag",

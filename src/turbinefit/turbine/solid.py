@@ -119,12 +119,18 @@ class TurbineSolid:
         return c0 / nc if nc > 1e-9 else _perp(e)
 
 
+#: The blades' widest chord, in blade lengths (at 22 % span, :func:`blade_profile`).
+BLADE_MAX_CHORD = 0.08
+#: The blades' twist at the root [rad] (:func:`twist_fraction` of it further out).
+ROOT_TWIST = math.radians(14.0)
+
+
 def blade_profile(u: F32, b: float) -> tuple[F32, F32]:
     """Half chord A and half thickness B [m] (float32, shaped like ``u``) of a blade of
     length ``b`` [m] at span fractions ``u`` (float32, hub 0, tip 1): round root (radius
     0.022 b), widest (chord 0.08 b) at 22 %, tip chord 0.015 b."""
     rr = np.float32(0.022 * b)
-    a_max = np.float32(0.04 * b)
+    a_max = np.float32(0.5 * BLADE_MAX_CHORD * b)
     tip = np.float32(0.0075 * b)
     t = np.clip((u - 0.03) * (1.0 / (0.22 - 0.03)), 0.0, 1.0)
     ramp = t * t * (3.0 - 2.0 * t)  # smoothstep from 3 % to 22 % span
@@ -135,13 +141,18 @@ def blade_profile(u: F32, b: float) -> tuple[F32, F32]:
     return A.astype(np.float32), B.astype(np.float32)
 
 
+def twist_fraction(u: F32) -> F32:
+    """The share of the root's twist (:data:`ROOT_TWIST`) at span fractions ``u``: 1 up to
+    20 % span, falling to 0 at the tip as ``((1 - u) / 0.8) ** 1.5``."""
+    return np.clip((1.0 - u) * np.float32(1 / 0.8), 0.0, 1.0) ** 1.5
+
+
 def blade_twist(u: F32, pitch: float) -> F32:
     """Angle [rad] (float32, shaped like ``u``) of the chord from the rotor plane at span
     fractions ``u`` (float32): ``pitch`` plus a twist of 14 degrees up to 20 % span that
-    falls to 0 at the tip. The chord turns from ``shaft x blade`` towards
-    ``blade x (shaft x blade)``."""
-    return np.float32(pitch) + np.float32(math.radians(14.0)) * np.clip(
-        (1.0 - u) * np.float32(1 / 0.8), 0.0, 1.0) ** 1.5
+    falls to 0 at the tip (:func:`twist_fraction`). The chord turns from ``shaft x blade``
+    towards ``blade x (shaft x blade)``."""
+    return np.float32(pitch) + np.float32(ROOT_TWIST) * twist_fraction(u)
 
 
 @dataclass(frozen=True)

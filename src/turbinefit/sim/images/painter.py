@@ -7,11 +7,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from turbinefit.sim.images.arrays import FloatArray, blend, column, dot3, matmul3, take_cols
+from turbinefit.sim.images.arrays import F32, FloatArray, blend, column, dot3, matmul3, take_cols
 from turbinefit.sim.images.frame import NEAR, Frame
 from turbinefit.sim.images.scene import Scene
 from turbinefit.sim.images.turbine import TurbineSolid
 from turbinefit.turbine.solid import blade_profile, blade_twist
+
+#: Per-pixel part codes of :func:`~turbinefit.sim.images.render.render_labels`: 0 nothing,
+#: then the primary turbine's tower, nacelle, spinner and its model blades 0, 1, 2
+#: (``model_points`` tips 3, 4, 5); another turbine of the scene is :data:`LABEL_OTHER`.
+LABEL_CODES = ("none", "tower", "nacelle", "spinner", "blade_0", "blade_1", "blade_2", "other")
+LABEL_OTHER = 7
 
 
 class Painter:
@@ -20,6 +26,7 @@ class Painter:
     def __init__(self, fr: Frame, scene: Scene) -> None:
         self.fr = fr
         self.sc = scene
+        self.code = 0  # label of the part being drawn (see LABEL_CODES)
 
     def tube(self, a: FloatArray, e: FloatArray, L: float, kind: str, tb: TurbineSolid,
              c0: FloatArray) -> None:
@@ -137,7 +144,11 @@ class Painter:
                 band = ((u > 0.8) & (u < 0.87)) | (u > 0.93)
             albedo[:, band] = column(self.sc.tip_colour)
         col = fr.shade(albedo, nl, nz, nD, dot3(fr.sun_f, D), 0.3)
-        fr.composite(idx, depth, cov, fr.hazed(col, depth))
+        label: tuple[int, F32 | None, F32 | None] = (self.code, None, None)
+        if fr.labels is not None:  # span, and the side angle of a blade (see LABEL_CODES)
+            span = s_hit if kind == "tower" else np.clip(s_hit, 0.0, np.float32(L))
+            label = (self.code, span, None if kind == "tower" else np.arctan2(-mn, mc))
+        fr.composite(idx, depth, cov, fr.hazed(col, depth), label)
 
     def box(self, tb: TurbineSolid) -> None:
         """The nacelle: a box (slab test) with rounded (superellipse) shading; coverage from
@@ -188,7 +199,7 @@ class Painter:
         albedo = column(self.sc.paint) * np.float32(0.97)
         col = fr.shade(albedo, dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0), dot3(fr.sun_f, D),
                        0.3)
-        fr.composite(idx, tn, cov, fr.hazed(col, tn))
+        fr.composite(idx, tn, cov, fr.hazed(col, tn), (self.code, None, None))
 
     def spinner(self, tb: TurbineSolid) -> None:
         """The spinner: an ellipsoid round the hub (exact intersection)."""
@@ -223,10 +234,11 @@ class Painter:
         n /= np.maximum(np.sqrt((n * n).sum(axis=0)), 1e-12)[None]
         col = fr.shade(column(self.sc.paint), dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0),
                        dot3(fr.sun_f, D), 0.35)
-        fr.composite(idx, t, cov, fr.hazed(col, t))
+        fr.composite(idx, t, cov, fr.hazed(col, t), (self.code, None, None))
 
-    def turbine(self, tb: TurbineSolid) -> None:
-        """All parts, far to near (so that anti-aliased edges blend over what is behind)."""
+    def turbine(self, tb: TurbineSolid, primary: bool = True) -> None:
+        """All parts, far to near (so that anti-aliased edges blend over what is behind);
+        labelled (:data:`LABEL_CODES`) as parts of the primary turbine or as another one."""
         fr = self.fr
         top = np.array([tb.base[0], tb.base[1], tb.tower_top_z])
         parts: list[tuple[float, int, int]] = [
@@ -237,6 +249,7 @@ class Painter:
         for i, tip in enumerate(tb.tips):
             parts.append((float(np.linalg.norm(0.5 * (tb.hub + tip) - fr.o)), 3, i))
         for _, kind, i in sorted(parts, key=lambda p: -p[0]):
+            self.code = (kind + 1 + i) if primary else LABEL_OTHER
             if kind == 0:
                 self.tube(tb.base, np.array([0.0, 0.0, 1.0]), float(top[2] - tb.base[2]),
                           "tower", tb, np.array([1.0, 0.0, 0.0]))
