@@ -96,6 +96,7 @@ def test_plan_of_a_georeferenced_flight(fit_dir: Path, sim_flight_dir: Path, cam
 @pytest.mark.parametrize("argv, words", [
     (["--standoff", "200"], r"--standoff.*meets the rotor"),
     (["--standoff", "10", "--gsd", "0.5"], r"--gsd.*1\.36 mm/px at a stand-off of 10 m"),
+    (["--standoff", "10", "--tower-clearance", "12"], r"--tower-clearance.*at most the stand-off"),
 ])
 def test_plan_refuses(argv: list[str], words: str, fit_dir: Path, camera_yaml: Path,
                       tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -73,7 +73,8 @@ def run(args: argparse.Namespace) -> int:
           f"{'best mm/px':>12}")
     for part, sides in s["coverage"].items():
         for side, c in sides.items():
+            best = c["median_best_gsd_mm_px"]  # NaN: never seen
             print(f"{part:<10}{side:<16}{100 * c['seen']:6.1f}%{100 * c['covered']:13.1f}%"
-                  f"{c['median_best_gsd_mm_px']:12.2f}")
+                  + (f"{best:12.2f}" if math.isfinite(best) else f"{'-':>12}"))
     print(f"wrote {args.out}")
     return 0

@@ -41,6 +41,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help="fraction of the footprint neighbouring photos share")
     p.add_argument("--max-gimbal-up", type=number, default=90.0, metavar="DEG",
                    help="the gimbal's largest upward pitch [deg]")
+    p.add_argument("--tower-clearance", type=number, default=None, metavar="M",
+                   help="least distance from the tower and the nacelle [m] (default: a quarter "
+                   "of the stand-off: the suction sides of blades pointing down are seen from "
+                   "beside the tower)")
     p.add_argument("--no-plots", action="store_true", help="skip path.png")
     p.add_argument("--overwrite", action="store_true", help="replace OUT_DIR's outputs")
     p.add_argument("--quiet", action="store_true", help="print nothing")
@@ -57,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
         camera = read_camera_yaml(args.camera)
     report = plan_folder(args.fit_dir, args.out, standoff=args.standoff, max_gsd_mm=args.gsd,
                          camera=camera, flight_dir=args.flight, overlap=args.overlap,
-                         max_gimbal_up_deg=args.max_gimbal_up, plots=not args.no_plots,
+                         max_gimbal_up_deg=args.max_gimbal_up,
+                         tower_clearance=args.tower_clearance, plots=not args.no_plots,
                          overwrite=args.overwrite)
     if args.quiet:
         return 0

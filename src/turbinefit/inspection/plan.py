@@ -210,6 +210,9 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                         f"blades ({s.b:.1f} m)", "standoff")
     clear = _Clearance(s)
     t_clear = d / 4.0 if opt.tower_clearance is None else float(opt.tower_clearance)
+    if not 0.0 < t_clear <= d:
+        raise PlanError(f"the tower clearance must be more than 0 and at most the stand-off "
+                        f"({d:g} m), got {t_clear:g}", "tower_clearance")
     max_up = math.radians(opt.max_gimbal_up_deg)
     foot = min(camera.width, camera.height) * d / f  # footprint along the part [m]
     step = max((1.0 - opt.overlap) * foot, 0.1)

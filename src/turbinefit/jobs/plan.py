@@ -136,8 +136,8 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                 standoff: float, max_gsd_mm: float | None = None,
                 camera: PinholeCamera | None = None,
                 flight_dir: str | os.PathLike[str] | None = None, overlap: float = 0.3,
-                max_gimbal_up_deg: float = 90.0, plots: bool = True,
-                overwrite: bool = False) -> PlanReport:
+                max_gimbal_up_deg: float = 90.0, tower_clearance: float | None = None,
+                plots: bool = True, overwrite: bool = False) -> PlanReport:
     """Plan the next flight round the fit in ``fit_dir`` (its fitted turbine, stopped at its
     blade rotation) at ``standoff`` metres with ``camera`` (default: the photos' camera of
     the flight the fit came from) and write it to ``out_dir`` (see the module docstring).
@@ -157,11 +157,13 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     cam = camera or fit.camera
     assert cam is not None
     surface = TurbineSurface(fit.turbine, fit.geometry)
-    options = PlanOptions(standoff, max_gsd_mm, overlap, max_gimbal_up_deg)
+    options = PlanOptions(standoff, max_gsd_mm, overlap, max_gimbal_up_deg,
+                          tower_clearance=tower_clearance)
     try:
         plan = plan_path(surface, cam, options)
     except PlanError as exc:
-        option = {"standoff": "--standoff", "max_gsd_mm": "--gsd"}.get(exc.option, exc.option)
+        option = {"standoff": "--standoff", "max_gsd_mm": "--gsd",
+                  "tower_clearance": "--tower-clearance"}.get(exc.option, exc.option)
         raise InputError(str(exc), field=option) from None
     timings = {"plan": time.perf_counter() - t0}
     stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
