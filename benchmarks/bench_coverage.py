@@ -59,6 +59,8 @@ from turbinefit.sim.images.scene import flight_scene
 from turbinefit.turbine.solid import ROOT_TWIST
 
 #: The renderer's blade twist at the root [rad] (``sim/images/painter.py``).
+#: Bins [m] of the blade span errors (the last one: 20 m and more).
+SPAN_BINS = np.append(np.arange(0.0, 20.0 + 1e-9, 0.05), np.inf)
 VARIANTS = ("fitted_flat", "fitted_pitch", "fitted_pitch_twist", "truth_pitch_twist")
 
 
@@ -74,8 +76,9 @@ def _counts(surface: TurbineSurface, poses: Any, gt: Any, gt_poses: Any, scene: 
         lut[c] = p
     vv, uu = np.mgrid[0:camera.height, 0:camera.width]
     uv = np.stack([uu.ravel(), vv.ravel()], -1).astype(float)
-    c = dict.fromkeys(("turbine", "part", "blade", "blade_side", "span", "tower",
-                       "tower_span"), 0)
+    c: dict[str, Any] = dict.fromkeys(("turbine", "part", "blade", "blade_side", "span",
+                                       "tower", "tower_span"), 0)
+    hist = np.zeros(len(SPAN_BINS) - 1, dtype=np.int64)
     for k in keyframes:
         lab = render_labels(camera, gt_poses[k], gt.to_vector(), scene)
         hits, _ = lookup_pixels(surface, camera, poses[k], uv)
@@ -89,12 +92,22 @@ def _counts(surface: TurbineSurface, poses: Any, gt: Any, gt_poses: Any, scene: 
         c["blade"] += int(bl.sum())
         gside = sector(lab.side_angle.ravel()[right])
         c["blade_side"] += int(np.sum(hits.side[right] == gside))
-        c["span"] += int(np.sum(np.abs(hits.span[right] - lab.span.ravel()[right]) < 0.5))
+        err = np.abs(hits.span[right] - lab.span.ravel()[right])
+        c["span"] += int(np.sum(err < 0.5))
+        hist += np.histogram(np.minimum(err, SPAN_BINS[-1] - 1e-9), SPAN_BINS)[0]
         tw = want == PARTS.index("tower")
         okt = tw & (hits.part == want)
         c["tower"] += int(tw.sum())
         c["tower_span"] += int(np.sum(np.abs(hits.span[okt] - lab.span.ravel()[okt]) < 0.5))
+    c["span_error_hist"] = hist.tolist()
     return c
+
+
+def span_percentile(hist: np.ndarray, q: float) -> float:
+    """The ``q`` quantile [m] of the span errors counted in ``hist`` (bins
+    :data:`SPAN_BINS`; the upper edge of the bin it falls in)."""
+    cum = np.cumsum(hist)
+    return float(SPAN_BINS[1 + int(np.searchsorted(cum, q * cum[-1]))])
 
 
 def fit_of(seed: int, root: Path) -> tuple[Path, Path]:
@@ -197,18 +210,27 @@ def main() -> None:
                            "plans": plans}
     print(f"lookup on {args.flights} default 200-keyframe flights, one keyframe in {args.every}, "
           "320x240 labelled renders")
-    print(f"{'variant':<20}{'part':>8}{'blade+side':>12}{'span<0.5m':>11}{'tower span':>12}")
+    print(f"{'variant':<20}{'part':>8}{'blade+side':>12}{'span<0.5m':>11}{'tower span':>12}"
+          f"{'span error [m] p50 / p90 / p99':>32}")
     totals: dict[str, Any] = {}
     for name in VARIANTS:
-        c = {k: sum(r[name][k] for r in rows) for k in rows[0][name]}
+        c = {k: sum(r[name][k] for r in rows) for k in rows[0][name] if k != "span_error_hist"}
+        hist = np.sum([r[name]["span_error_hist"] for r in rows], axis=0)
         totals[name] = {"part_pct": pct(c, "part", "turbine"),
                         "blade_side_pct": pct(c, "blade_side", "blade"),
                         "span_pct": pct(c, "span", "blade"),
-                        "tower_span_pct": pct(c, "tower_span", "tower"), "pixels": c}
+                        "tower_span_pct": pct(c, "tower_span", "tower"), "pixels": c,
+                        **{f"span_error_p{q}_m": span_percentile(hist, q / 100)
+                           for q in (50, 90, 99)}}
         t = totals[name]
         print(f"{name:<20}{t['part_pct']:7.2f}%{t['blade_side_pct']:11.2f}%"
-              f"{t['span_pct']:10.2f}%{t['tower_span_pct']:11.2f}%")
+              f"{t['span_pct']:10.2f}%{t['tower_span_pct']:11.2f}%"
+              f"{t['span_error_p50_m']:9.2f}{t['span_error_p90_m']:7.2f}"
+              f"{t['span_error_p99_m']:7.2f}")
     out["totals"] = totals
+    for r in rows:  # summed into the totals' percentiles
+        for name in VARIANTS:
+            del r[name]["span_error_hist"]
     print("plan at 10 m, 2 mm/px, 20 MP camera; coverage of its photos of the true turbine")
     for p in plans:
         blades = [v for part, sides in p["covered"].items() if part != "tower"
