@@ -179,3 +179,25 @@ def test_lookup_agrees_with_the_renderers_labels() -> None:
     assert right / total > 0.95
     assert sides_right / blades > 0.93
     assert spans_right / blades > 0.9
+
+
+@pytest.mark.parametrize("phi_deg", [0.0, 30.0, 170.0, 250.0, -100.0, 400.0])
+@pytest.mark.parametrize("blade_length", [40.0, -40.0])
+@pytest.mark.parametrize("heading_deg", [0.0, 135.0])
+def test_clock_angles_follow_each_model_blade_whatever_the_parameters(
+        phi_deg: float, blade_length: float, heading_deg: float) -> None:
+    """Each model blade's clock angle is that of its own tip, seen from upwind, for blade
+    rotations outside one period and a negative blade length too (not those of the
+    canonical turbine's blades)."""
+    from turbinefit.inspection.surface import blade_clock_angles
+    from turbinefit.turbine.model import model_points
+
+    t = TurbineParams(0.0, 0.0, 80.0, math.radians(heading_deg), 5.0, math.radians(phi_deg),
+                      blade_length)
+    p, _ = model_points(t.to_vector())
+    w = math.radians(heading_deg)
+    right = np.array([-math.sin(w), math.cos(w), 0.0])  # seen from upwind
+    for i, clock in enumerate(blade_clock_angles(t)):
+        d = p[3 + i] - p[2]
+        expected = math.degrees(math.atan2(d @ right, d[2])) % 360.0
+        assert min(abs(clock - expected), 360.0 - abs(clock - expected)) < 1e-6

@@ -129,7 +129,8 @@ def _unit(v: FloatArray) -> FloatArray:
 
 def blade_clock_angles(turbine: TurbineParams) -> FloatArray:
     """Clockwise angle from 12 o'clock seen from upwind [deg, 0..360) of model blades 0-2."""
-    phi = turbine.canonical().blade_rotation + BLADE_PERIOD * np.arange(3)
+    flip = math.pi if turbine.blade_length < 0 else 0.0  # tips on the other side of the hub
+    phi = turbine.blade_rotation + flip + BLADE_PERIOD * np.arange(3)
     return np.degrees((-phi) % (2.0 * math.pi)) % 360.0
 
 
