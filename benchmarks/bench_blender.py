@@ -400,7 +400,7 @@ def main() -> None:
     det, info = pool.detector, pool.detector.info
     assert (info.input_width, info.input_height) == (160 * IMAGE_SCALE, 120 * IMAGE_SCALE)
     out: dict[str, Any] = {
-        "model": str(det.path), "samples": args.samples, "px": "input",
+        "model": det.path.name, "samples": args.samples, "px": "input",
         "threshold": info.threshold, "tip_threshold": info.tip_threshold,
         "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
         "views": views_benchmark(pool, args.n, args.blender, args.samples) if args.n else None,

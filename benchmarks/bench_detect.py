@@ -58,11 +58,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from common import run_command
 
 from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
 from turbinefit.eval.detection import DetectionStats
 from turbinefit.io.flight_folder import keyframe_images, read_flight
 from turbinefit.io.images import read_image
+from turbinefit.jobs.outputs import finite_json
 from turbinefit.sim.dataset import DATA_VERSION, DatasetSpec, build_dataset
 from turbinefit.sim.scenario import SimConfig
 from turbinefit.turbine.model import model_points
@@ -185,8 +187,7 @@ def fit(flight: Path, extra: list[str]) -> dict:
     with tempfile.TemporaryDirectory(dir=DATA) as tmp:
         out = Path(tmp) / "fit"
         t0 = time.perf_counter()
-        subprocess.run([str(BIN), "fit", str(flight), "--out", str(out), "--no-plots", "--quiet",
-                        *extra], check=True)
+        run_command(["fit", str(flight), "--out", str(out), "--no-plots", "--quiet", *extra])
         wall = time.perf_counter() - t0
         s = json.loads((out / "summary.json").read_text())
     acc = s["accuracy"]["after"]
@@ -249,17 +250,6 @@ def example_sheet(det: HeatmapDetector, flight: Path, path: Path) -> None:
     tiles = [overlay(im, det.detect(im)) for im in (read_image(p) for p in picks)]
     rows = [np.concatenate(tiles[r * 4:(r + 1) * 4], axis=1) for r in range(2)]
     write_png(path, np.concatenate(rows, axis=0))
-
-
-def _nulls(obj: Any) -> Any:
-    """``obj`` with every non-finite float replaced by None."""
-    if isinstance(obj, dict):
-        return {k: _nulls(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_nulls(v) for v in obj]
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
 
 
 def main() -> None:
@@ -350,7 +340,7 @@ def main() -> None:
                     f"{q} {v:.2f}x" for q, v in sm["ratio_same_options_" + k].items()))
     RESULTS.mkdir(exist_ok=True)
     out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
-           "model": str(det.path), "flip": det.flip, "zoom": det.zoom,
+           "model": det.path.name, "flip": det.flip, "zoom": det.zoom,
            "threshold": det.info.threshold,
            "tip_threshold": det.info.tip_threshold, "tip_shift_px": det.tip_shift,
            "heldout": {"n": args.heldout, "seed": HELDOUT_SEED, "px": "input", **m_input},
@@ -367,7 +357,7 @@ def main() -> None:
                    "unseen": summaries.get("unseen")}}
     # strict JSON: an undefined figure (NaN, such as a flight's tips in sight, which its
     # photos do not record) is written as null
-    (RESULTS / "bench_detect.json").write_text(json.dumps(_nulls(out), indent=2,
+    (RESULTS / "bench_detect.json").write_text(json.dumps(finite_json(out), indent=2,
                                                           allow_nan=False) + "\n")
     print(f"wrote {RESULTS / 'bench_detect.json'}")
 

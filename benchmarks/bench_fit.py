@@ -31,7 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import BIN, DATA, RESULTS, simulate, warm, write_json
+from common import BIN, DATA, RAN, RESULTS, simulate, warm, write_json
 
 #: accuracy configurations: name -> extra command-line options
 MODES = {
@@ -56,7 +56,7 @@ def run_fit(flight: Path, extra: list[str] | None = None,
             _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak memory
             wall = time.perf_counter() - t0
         code = os.waitstatus_to_exitcode(status)
-        if code != 0:
+        if code not in RAN:
             raise RuntimeError(f"{' '.join(cmd)} failed: {log.read_text().strip()}")
         summary = json.loads((out / "summary.json").read_text())
     return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / 1024.0, "summary": summary}

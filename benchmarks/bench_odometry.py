@@ -26,11 +26,10 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import tempfile
 from pathlib import Path
 
-from common import BIN, DATA, RESULTS, simulate, write_json
+from common import DATA, RESULTS, run_command, simulate, write_json
 
 #: configuration name -> extra command-line options of `turbinefit fit`
 CONFIGS = {
@@ -47,8 +46,7 @@ def run_fit(flight: Path, extra: list[str]) -> dict:
     """`turbinefit fit` in a child process: the errors after the fit and the pair frame used."""
     with tempfile.TemporaryDirectory(dir=DATA) as tmp:
         out = Path(tmp) / "fit"
-        subprocess.run([str(BIN), "fit", str(flight), "--out", str(out), "--no-plots",
-                        "--quiet", *extra], check=True)
+        run_command(["fit", str(flight), "--out", str(out), "--no-plots", "--quiet", *extra])
         summary = json.loads((out / "summary.json").read_text())
     after = summary["accuracy"]["after"]
     return {**{m: after[m] for m in METRICS}, "pair_frame": summary["config"]["pair_frame"]}

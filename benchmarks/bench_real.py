@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from common import DATA, RESULTS, write_json
 
-from turbinefit.detect import DetectorPool
+from turbinefit.detect import DetectOptions, DetectorPool
 from turbinefit.eval.regions import bottom_rows
 from turbinefit.io.images import read_image
 from turbinefit.jobs.evaluate import evaluate_regions
@@ -80,6 +80,9 @@ def main() -> None:
                     help="the data set's 'Wind turbines and blades' folder (see below)")
     ap.add_argument("--n", type=int, default=80, help="photos per class (0 = all originals)")
     ap.add_argument("--model", type=Path, default=None)
+    ap.add_argument("--input-scale", type=float, default=1.0,
+                    help="run the net at this multiple of its input size (test-time zoom off "
+                         "unless 1; results then go to bench_real_x<S>.json)")
     ap.add_argument("--renders", type=int, default=0,
                     help="also N held-out renders of each shape (square, 3:2, 16:9, 3:4)")
     args = ap.parse_args()
@@ -98,10 +101,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         boxes = Path(tmp) / "boxes.csv"
         boxes.write_text("".join(",".join(r) + "\n" for r in rows))
+        scaled = args.input_scale != 1.0
         rep = evaluate_regions(root / "images", boxes=boxes, model=args.model,
-                               sheet=DATA / "real_worst.png", overwrite=True, progress=True)
-    result: dict[str, object] = {"photos_dir": str(root), "n_per_class": args.n,
-                                 "model": str(rep.model), "grow": rep.grow,
+                               sheet=DATA / "real_worst.png", overwrite=True, progress=True,
+                               detect_options=DetectOptions(zoom=False, input_scale=args.input_scale)
+                               if scaled else None)
+    model = Path(rep.model)
+    result: dict[str, object] = {"photos_dir": root.name, "n_per_class": args.n,
+                                 "input_scale": args.input_scale,
+                                 "model": model.name, "grow": rep.grow,
                                  "metrics": rep.summary}
     for name, m in rep.summary.items():
         print(f"{name:8s} {int(m['photos']):4d} photos: line mass inside the box grown by "
@@ -123,8 +131,9 @@ def main() -> None:
         artefact[cls] = {"bottom_rows": bottom, "whole_map": whole}
         print(f"{cls:8s} bottom {BOTTOM_PX} rows' line mean {bottom:.3f}, whole map {whole:.3f}")
     result["bottom_rows"] = artefact
-    write_json(RESULTS / "bench_real.json", result)
-    print(f"wrote {RESULTS / 'bench_real.json'}; worst photos: {DATA / 'real_worst.png'}")
+    out = RESULTS / (f"bench_real_x{args.input_scale:g}.json" if scaled else "bench_real.json")
+    write_json(out, result)
+    print(f"wrote {out}; worst photos: {DATA / 'real_worst.png'}")
 
 
 if __name__ == "__main__":

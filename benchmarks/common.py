@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from turbinefit.jobs.outputs import finite_json
+
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
 RESULTS = HERE / "results"
@@ -28,6 +30,22 @@ def simulate(n: int, seed: int, odometry: str = "gps") -> Path:
     return out
 
 
+#: Exit statuses of a command that ran and wrote its outputs: 0, and 3 for a `fit` or
+#: `track` whose verdict is `failed` (a result to record, not a crash of the benchmark).
+RAN = (0, 3)
+
+
+def run_command(argv: list[str], **kwargs: object) -> subprocess.CompletedProcess:
+    """``turbinefit ARGV...`` in a child process (``subprocess.run`` keywords); raises
+    ``RuntimeError`` with its stderr unless it exits with a status of :data:`RAN`."""
+    kwargs.setdefault("stderr", subprocess.PIPE)
+    proc = subprocess.run([str(BIN), *argv], text=True, **kwargs)  # type: ignore[call-overload]
+    if proc.returncode not in RAN:
+        raise RuntimeError(f"turbinefit {' '.join(argv)} failed (exit status "
+                           f"{proc.returncode}): {(proc.stderr or '').strip()}")
+    return proc
+
+
 def warm(flight: Path) -> None:
     """Read every file once so that all runs see the page cache (as right after `simulate`)."""
     for p in flight.rglob("*"):
@@ -38,8 +56,8 @@ def warm(flight: Path) -> None:
 
 
 def write_json(path: Path, result: dict) -> None:
-    """Write ``result`` to ``path`` atomically."""
+    """Write ``result`` to ``path`` atomically, as strict JSON (undefined numbers: null)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(result, indent=2) + "\n")
+    tmp.write_text(json.dumps(finite_json(result), indent=2, allow_nan=False) + "\n")
     os.replace(tmp, path)

@@ -43,6 +43,14 @@ BIG = 300 << 20  # a sparse file above every text limit
 OK_ODOMETRY: Mutation = lambda f: shutil.copy(f / "keyframes.txt", f / "odometry.txt")  # noqa: E731
 
 
+def _blank_heatmaps(folder: Path) -> None:
+    """Every heat-map of the flight zero: the turbine is never seen."""
+    import numpy as np
+
+    for p in (folder / "heatmaps").glob("*.npy"):
+        np.save(p, np.zeros_like(np.load(p)))
+
+
 def _cases() -> list[Case]:
     c: list[Case] = []
 
@@ -76,8 +84,11 @@ def _cases() -> list[Case]:
     add("loop-camera.yaml", fit(), symlink("camera.yaml", "camera.yaml"), CAM, "cannot access")
 
     # -- missing files
-    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF), ("turbine.yaml", TURB)):
+    for name, pat in (("camera.yaml", CAM), ("keyframes.txt", KF)):
         add(f"missing-{name}", fit(), unlink(name), pat, "missing")
+    # without turbine.yaml fit estimates it (turbinefit init): a turbine never seen is refused
+    add("missing-turbine.yaml-unseen", fit(), both(unlink("turbine.yaml"), _blank_heatmaps),
+        r"flight", r"cannot determine turbine: it is seen in 0 keyframe\(s\).*--near")
     add("missing-heatmap", fit(), unlink("heatmaps/2.000000.npy"), HM, r"missing", r"line 5")
     add("missing-folder", cmd("fit", "{w}/nothing", "--out", "{w}/out"), None, r"nothing",
         "not found")
@@ -343,7 +354,25 @@ def _cases() -> list[Case]:
         r"character device")
     add("rosbag-missing", cmd(*bag), None, r"b\.bag", r"not found")
     add("rosbag-not-a-bag", cmd(*bag), write("b.bag", "not a bag"), r"b\.bag", r"ROS bag")
+
+    # -- coverage (a flight folder stands in for a fit folder: poses, turbine, camera)
+    cov = ("coverage", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
+    add("coverage-no-turbine", cmd(*cov), unlink("turbine.yaml"), TURB, r"without fitted turbine")
+    add("coverage-no-poses", cmd(*cov), unlink("keyframes.txt"), KF, r"without fitted poses")
+    add("coverage-no-summary", cmd("coverage", "{w}/flight", "--out", "{w}/out"), None,
+        r"summary\.json", r"--flight")
+    add("coverage-fifo-turbine", cmd(*cov), fifo("turbine.yaml"), TURB, "named pipe", hang=True)
+    plan = ("plan", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
+    add("plan-no-turbine", cmd(*plan, "--standoff", "10"), unlink("turbine.yaml"), TURB,
+        r"without fitted turbine")
+    add("plan-no-poses", cmd(*plan, "--standoff", "10"), unlink("keyframes.txt"), KF,
+        r"without fitted poses")
+    add("plan-standoff-meets-rotor", cmd(*plan, "--standoff", "500"), None, r"--standoff",
+        r"meets the rotor")
+    add("plan-gsd-unreachable", cmd(*plan, "--standoff", "10", "--gsd", "0.01"), None,
+        r"--gsd", r"mm/px at a stand-off of 10 m")
     return c
 
 
 CASES: list[Case] = _cases()
+

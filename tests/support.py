@@ -5,6 +5,7 @@ and of command-line runs. Fixtures live in the ``conftest.py`` files."""
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import struct
 import zlib
@@ -18,7 +19,7 @@ from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, quat_normalize
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.turbine.model import TurbineParams, line_samples, model_points
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams, line_samples, model_points
 
 # ------------------------------------------------------------------ cameras, poses, turbines
 
@@ -219,12 +220,54 @@ def assert_valid_png(path: Path) -> tuple[int, int]:
     return width, height
 
 
+def assert_turbine_glb(path: Path, turbine: TurbineParams, geometry: TurbineGeometry) -> None:
+    """Read ``turbine.glb`` back with trimesh (an independent glTF reader) and check it is
+    ``turbine``: six closed parts with valid faces; in the world frame (glTF's y up turned
+    back to z up) the tower stands on the base up to the tower top, the spinner sits on the
+    hub and each blade runs from the hub to its tip, at the fitted blade rotation."""
+    import trimesh
+
+    scene = trimesh.load(path, file_type="glb")
+    assert scene.metadata["turbinefit"]["turbine"] == pytest.approx(turbine.to_dict())
+    names = {"tower", "nacelle", "spinner", "blade_1", "blade_2", "blade_3"}
+    assert set(scene.graph.nodes_geometry) == names
+    world: dict[str, np.ndarray] = {}
+    for name in names:
+        node_T_mesh, geom = scene.graph[name]
+        mesh = scene.geometry[geom]
+        v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        assert len(v) > 0 and np.isfinite(v).all(), name
+        assert f.min() >= 0 and f.max() < len(v), name
+        assert mesh.area_faces.min() > 1e-8, name  # no degenerate triangle
+        closed = mesh.copy()
+        closed.merge_vertices(merge_tex=True, merge_norm=True)  # normals split sharp edges
+        assert closed.is_watertight and closed.is_winding_consistent and closed.volume > 0, name
+        gltf = v @ node_T_mesh[:3, :3].T + node_T_mesh[:3, 3]
+        world[name] = np.stack([gltf[:, 0], -gltf[:, 2], gltf[:, 1]], axis=1)  # y up -> z up
+    p, _ = model_points(turbine.to_vector(), geometry)
+    base, top, hub, tips = p[0], p[1], p[2], p[3:]
+    h, b = turbine.tower_height, abs(turbine.blade_length)
+    tower = world["tower"]
+    assert tower[:, 2].min() == pytest.approx(base[2], abs=1e-3)
+    assert top[2] - 1e-3 <= tower[:, 2].max() <= max(top[2], hub[2]) + 1e-3
+    np.testing.assert_allclose(0.5 * (tower.min(0) + tower.max(0))[:2], base[:2], atol=1e-3)
+    assert 0.5 * np.ptp(tower[:, 0]) == pytest.approx(h / 30, rel=0.01)  # base radius
+    spinner = world["spinner"]
+    assert np.linalg.norm(spinner.mean(0) - hub) < 0.05 * b
+    for i in range(3):
+        d = world[f"blade_{i + 1}"] - hub
+        reach = np.linalg.norm(d, axis=1)
+        assert b * 0.999 <= reach.max() <= b * 1.001 + 1e-3
+        far = d[np.argmax(reach)] / reach.max()
+        assert far @ (tips[i] - hub) / np.linalg.norm(tips[i] - hub) > math.cos(math.radians(0.5))
+
+
 # ------------------------------------------------------------------ the command line
 
 #: `turbinefit simulate` options of the small flight of ``sim_flight_dir`` (conftest.py).
 SIM_ARGS = ["--keyframes", "12", "--seed", "3", "--width", "160", "--height", "120"]
 N_KEYFRAMES = 12
-FIT_OUTPUTS = {"keyframes.txt", "turbine.yaml", "config.yaml", "summary.json"}
+FIT_OUTPUTS = {"keyframes.txt", "turbine.yaml", "turbine.glb", "config.yaml", "summary.json"}
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

@@ -41,6 +41,25 @@ def test_shipped_model_finds_the_hub(detector: HeatmapDetector, held_out_samples
     assert np.median(errs) < 3.0, errs  # [px at 320 x 240]
 
 
+def test_input_scale_runs_the_net_larger_and_finds_the_same_hub(
+        held_out_samples: list) -> None:
+    """At twice its input size the net makes maps twice as large (320 x 240 of a 4:3 photo)
+    whose hub lies where the 1x maps' hub does, in photo pixels."""
+    one = HeatmapDetector(threads=1, zoom=False)
+    two = DetectOptions(zoom=False, input_scale=2.0).detector(threads=1)
+    assert two.info.input_width == 640 and two.map_size(1280, 960) == (320, 240)
+    assert two.photo_width == 640
+    errs = []
+    for s in held_out_samples[:3]:
+        small, large = one.detect_small(s.image), two.detect_small(s.image)
+        assert large.shape == (7, 240, 320)
+        (u1, v1, _), (u2, v2, _) = peak(small[2]), peak(large[2])
+        errs.append(np.hypot(2 * u1 + 0.5 - u2, 2 * v1 + 0.5 - v2))  # at 320 px
+    assert np.median(errs) < 3.0, errs
+    with pytest.raises(ValueError, match="input scale 20"):
+        HeatmapDetector(threads=1, input_scale=20)
+
+
 def test_shipped_model_sees_320_px_photos(detector: HeatmapDetector) -> None:
     info = detector.info
     assert (info.input_width, info.output_scale, info.stride) == (320, 2, 32)

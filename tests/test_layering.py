@@ -18,6 +18,8 @@ PACKAGE = Path(turbinefit.__file__).parent
 
 #: The core: geometry, the turbine model, heat-maps, costs and solver (and what they share).
 CORE = ("geometry", "turbine", "heatmaps", "costs", "solver", "flight", "errors", "_native")
+#: Above the core but pure geometry: the inspection imports the core and nothing else.
+INSPECTION = ("inspection",)
 
 
 #: What the core must never import, even inside a function.
@@ -56,6 +58,13 @@ def test_core_imports_nothing_above_it(path: Path) -> None:
     assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
 
 
+@pytest.mark.parametrize("path", _modules(INSPECTION), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_inspection_imports_only_the_core(path: Path) -> None:
+    bad = sorted(m for m in _imported(path)
+                 if m.split(".")[1] not in (*CORE, "inspection"))
+    assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
+
+
 def test_the_check_sees_a_forbidden_import(tmp_path: Path) -> None:
     p = tmp_path / "m.py"
     p.write_text("def f():\n    from turbinefit.io.tum import write_tum\n")
@@ -84,12 +93,16 @@ def test_top_level_help_loads_no_command() -> None:
 
 @pytest.mark.parametrize(("argv", "must_not"), [
     (["fit", "--help"], ("turbinefit.detect", "turbinefit.sim", "turbinefit.train",
-                         "turbinefit.jobs", "turbinefit.cli.track", "onnxruntime",
+                         "turbinefit.jobs", "turbinefit.cli.track", "onnxruntime", "pygltflib",
                          "matplotlib", "torch")),
     (["detect", "--help"], ("turbinefit.solver", "turbinefit.sim", "turbinefit.jobs",
                             "onnxruntime", "torch", "matplotlib")),
     (["simulate", "--help"], ("turbinefit.solver", "turbinefit.detect", "onnxruntime",
                               "torch", "matplotlib")),
+    (["coverage", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
+                              "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
+    (["plan", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
+                          "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
 ])
 def test_a_command_loads_only_what_it_uses(argv: list[str], must_not: tuple[str, ...]) -> None:
     loaded = _loaded(argv)

@@ -57,8 +57,11 @@ def test_linearization_matches_numpy(monkeypatch, flight, kw):
     assert c.cost == pytest.approx(d.cost, rel=1e-12) and d.D is None
 
 
-def test_correspondences_match_numpy(monkeypatch, flight):
-    prob = FitProblem(flight, FitConfig(lines="corr"))
+@pytest.mark.parametrize("pixel_scale", [None, 3.0])
+def test_correspondences_match_numpy(monkeypatch, flight, pixel_scale):
+    """Also with searches of wider range and sample spacing (the pixel settings of maps
+    three times wider than the reference)."""
+    prob = FitProblem(flight, FitConfig(lines="corr", pixel_scale=pixel_scale))
     poses, theta = flight.world_T_cam, flight.turbine.to_vector()
     a, b = both(monkeypatch, lambda: prob.find_correspondences(poses, theta))
     for kind in ("point", "line"):

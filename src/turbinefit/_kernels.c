@@ -409,14 +409,15 @@ static double window_max(const float *pl, int W, int H, int bu, int bv, const in
     return best;
 }
 
-/* Point correspondences: coarse offsets (K1, 2), fine offsets (K2, 2). uv (N, M, 2),
- * usable (N, M). Writes target (N, M, 2), found (N, M). Returns -1 or the first bad row. */
-TF_EXPORT int64_t tf_point_search(
+/* Point correspondences: coarse offsets (K1, 2), fine offsets (K2, 2); the sub-pixel peak
+ * from the neighbours `step` px away. uv (N, M, 2), usable (N, M). Writes target (N, M, 2),
+ * found (N, M). Returns -1 or the first bad row. */
+TF_EXPORT int64_t tf_point_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
     const int64_t *keyframes, const int64_t *channels, const double *uv, const uint8_t *usable,
     int64_t R, const int64_t *coarse, int64_t K1, const int64_t *fine, int64_t K2,
-    double threshold, double *target, uint8_t *found) {
-    const int W = (int)width, H = (int)height;
+    int64_t step, double threshold, double *target, uint8_t *found) {
+    const int W = (int)width, H = (int)height, s = (int)step;
     const size_t plane = (size_t)W * H;
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(static) reduction(min : first_bad)
@@ -438,15 +439,15 @@ TF_EXPORT int64_t tf_point_search(
                 fu = clampi(cu0 + (int)coarse[0], 0, W - 1);
                 fv = clampi(cv0 + (int)coarse[1], 0, H - 1);
             }
-            int inner = fu > 0 && fu < W - 1 && fv > 0 && fv < H - 1;
+            int inner = fu >= s && fu <= W - 1 - s && fv >= s && fv <= H - 1 - s;
             found[i] = use && peak >= threshold && inner;
-            double n0 = pl[(size_t)fv * W + (fu > 0 ? fu - 1 : 0)];
-            double n1 = pl[(size_t)fv * W + (fu < W - 1 ? fu + 1 : W - 1)];
-            double n2 = pl[(size_t)(fv > 0 ? fv - 1 : 0) * W + fu];
-            double n3 = pl[(size_t)(fv < H - 1 ? fv + 1 : H - 1) * W + fu];
+            double n0 = pl[(size_t)fv * W + clampi(fu - s, 0, W - 1)];
+            double n1 = pl[(size_t)fv * W + clampi(fu + s, 0, W - 1)];
+            double n2 = pl[(size_t)clampi(fv - s, 0, H - 1) * W + fu];
+            double n3 = pl[(size_t)clampi(fv + s, 0, H - 1) * W + fu];
             if (!(isfinite(n0) && isfinite(n1) && isfinite(n2) && isfinite(n3))) bad = 1;
-            target[2 * i] = fu + peak_offset(n0, peak, n1);
-            target[2 * i + 1] = fv + peak_offset(n2, peak, n3);
+            target[2 * i] = fu + s * peak_offset(n0, peak, n1);
+            target[2 * i + 1] = fv + s * peak_offset(n2, peak, n3);
         }
         if (bad && n < first_bad) first_bad = n;
     }
@@ -465,12 +466,14 @@ static double bilinear(const float *pl, int W, int H, double pu, double pv, int 
     return (1 - fv) * ((1 - fu) * t00 + fu * t01) + fv * ((1 - fu) * t10 + fu * t11);
 }
 
-/* Line correspondences (correspondence.find_line_correspondences): coarse every 2 px over
- * s = -L..L, then 1 px either side of the best. Returns -1 or the first bad row. */
-TF_EXPORT int64_t tf_line_search(
+/* Line correspondences (correspondence.find_line_correspondences): coarse every 2 steps
+ * over s = -L..L steps (a step is `step` px), then one step either side of the best.
+ * Returns -1 or the first bad row. */
+TF_EXPORT int64_t tf_line_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
     const int64_t *keyframes, const int64_t *channels, const double *uv, const double *normal,
-    const uint8_t *usable, int64_t L, double threshold, double *target, uint8_t *found) {
+    const uint8_t *usable, int64_t L, double step, double threshold, double *target,
+    uint8_t *found) {
     const int W = (int)width, H = (int)height;
     const size_t plane = (size_t)W * H;
     const int64_t K = L + 1; /* coarse samples at -L, -L + 2, ..., L */
@@ -489,22 +492,22 @@ TF_EXPORT int64_t tf_line_search(
             int64_t kc = 0;
             int after = 0;
             for (int64_t k = 0; k < K; k++) {
-                double st = (double)(2 * k - L);
+                double st = (double)(2 * k - L) * step;
                 double val = bilinear(pl, W, H, u0 + st * nu, v0 + st * nv, use, &bad);
                 if (after) { v_cp = val; after = 0; }
                 if (val > best) { best = val; kc = k; v_cm = prev; after = 1; v_cp = -1.0; }
                 prev = val;
             }
-            double sc = (double)(2 * kc - L);
-            double fm = bilinear(pl, W, H, u0 + (sc - 1) * nu, v0 + (sc - 1) * nv, use, &bad);
-            double fp = bilinear(pl, W, H, u0 + (sc + 1) * nu, v0 + (sc + 1) * nv, use, &bad);
-            /* candidates at sc - 1, sc, sc + 1; first maximum */
-            double peak = fm, vm = v_cm, vp = best, bs = sc - 1;
+            double sc = (double)(2 * kc - L) * step;
+            double fm = bilinear(pl, W, H, u0 + (sc - step) * nu, v0 + (sc - step) * nv, use, &bad);
+            double fp = bilinear(pl, W, H, u0 + (sc + step) * nu, v0 + (sc + step) * nv, use, &bad);
+            /* candidates at sc - step, sc, sc + step; first maximum */
+            double peak = fm, vm = v_cm, vp = best, bs = sc - step;
             if (best > peak) { peak = best; vm = fm; vp = fp; bs = sc; }
-            if (fp > peak) { peak = fp; vm = best; vp = v_cp; bs = sc + 1; }
-            int bracketed = bs > -L && bs < L && vm >= 0.0 && vp >= 0.0;
+            if (fp > peak) { peak = fp; vm = best; vp = v_cp; bs = sc + step; }
+            int bracketed = bs > -L * step && bs < L * step && vm >= 0.0 && vp >= 0.0;
             found[i] = use && peak >= threshold && bracketed;
-            double s = bs + peak_offset(vm, peak, vp);
+            double s = bs + step * peak_offset(vm, peak, vp);
             target[2 * i] = u0 + s * nu;
             target[2 * i + 1] = v0 + s * nv;
         }
@@ -638,6 +641,26 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
         ltsolve6(L + 36 * k, bk, m);
     }
     return 0;
+}
+
+/* Value check of heat-map files: the first of N keyframes (float32 arrays of `count`
+ * values at the addresses `maps`) holding a value outside [lo, hi] or a NaN, or N if none.
+ * One pass over the data on all threads (the caller names the file and value). */
+TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t count,
+                                        double lo, double hi) {
+    const float flo = (float)lo, fhi = (float)hi;
+    int64_t first_bad = INT64_MAX;
+#pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        const float *p = (const float *)(uintptr_t)maps[n];
+        int bad = 0;
+        for (int64_t i = 0; i < count; i++) {
+            const float v = p[i];
+            bad |= !(v >= flo) | !(v <= fhi); /* NaN fails both */
+        }
+        if (bad && n < first_bad) first_bad = n;
+    }
+    return first_bad == INT64_MAX ? N : first_bad;
 }
 
 TF_EXPORT int64_t tf_num_threads(void) {

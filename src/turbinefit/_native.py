@@ -44,26 +44,34 @@ def _load() -> ctypes.CDLL | None:
         return None
     try:
         lib = ctypes.CDLL(spec.origin)
-    except OSError:
+        _declare(lib)
+    except (OSError, AttributeError):  # not loadable, or built from an older _kernels.c
         return None
+    return lib
+
+
+def _declare(lib: ctypes.CDLL) -> None:
+    """Declare the kernels' signatures (AttributeError if one is missing)."""
     lib.tf_image_terms.restype = _int
     lib.tf_image_terms.argtypes = [
         _int, _int, _f64, _f64, _int, _int, _f64, _f64, _ptr, _ptr, _ptr, _int, _i64, _u64,
         _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
-    lib.tf_point_search.restype = _int
-    lib.tf_point_search.argtypes = [
+    lib.tf_point_search_scaled.restype = _int
+    lib.tf_point_search_scaled.argtypes = [
         _int, _int, _int, _int, _u64, _i64, _i64, _f64, _u8, _int, _i64, _int, _i64, _int,
-        _dbl, _f64, _u8]
-    lib.tf_line_search.restype = _int
-    lib.tf_line_search.argtypes = [
-        _int, _int, _int, _int, _u64, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _f64, _u8]
+        _int, _dbl, _f64, _u8]
+    lib.tf_line_search_scaled.restype = _int
+    lib.tf_line_search_scaled.argtypes = [
+        _int, _int, _int, _int, _u64, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _dbl, _f64,
+        _u8]
     lib.tf_block_tridiag_solve.restype = _int
     lib.tf_block_tridiag_solve.argtypes = [_int, _int, _f64, _f64, _f64, _f64]
     lib.tf_project.restype = None
     lib.tf_project.argtypes = [_int, _int, _f64, _f64, _int, _int, _f64, _int, _f64, _u8, _u8]
     lib.tf_num_threads.restype = _int
     lib.tf_num_threads.argtypes = []
-    return lib
+    lib.tf_first_out_of_range.restype = _int
+    lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _dbl, _dbl]
 
 
 _LIB = _load()
@@ -78,6 +86,16 @@ def available() -> bool:
 def num_threads() -> int:
     """OpenMP threads the kernels use (1 without OpenMP or without the kernels)."""
     return int(_LIB.tf_num_threads()) if _LIB is not None else 1
+
+
+def first_out_of_range(maps: NDArray[np.uint64], count: int, lo: float, hi: float) -> int:
+    """Index of the first of ``len(maps)`` float32 arrays (``count`` values at each address of
+    ``maps``) holding a NaN or a value outside [``lo``, ``hi``] (compared in float32), or
+    ``len(maps)`` if none; all threads, one pass (``tf_first_out_of_range``). Its numpy twin
+    is :func:`turbinefit.io.heatmap_files.check_heatmap_values` applied in turn."""
+    assert _LIB is not None
+    return int(_LIB.tf_first_out_of_range(len(maps), _c(maps, np.uint64), int(count),
+                                          float(lo), float(hi)))
 
 
 def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
@@ -148,17 +166,17 @@ def project(poses: FloatArray, camera_params: FloatArray, width: int, height: in
 def point_search(
     maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, usable: NDArray[np.bool_], radius: int,
-    coarse: NDArray[np.int64], fine: NDArray[np.int64], threshold: float,
+    coarse: NDArray[np.int64], fine: NDArray[np.int64], step: int, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Circular-window search (see correspondence.find_point_correspondences)."""
     assert _LIB is not None
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
-    bad = _LIB.tf_point_search(
+    bad = _LIB.tf_point_search_scaled(
         N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
-        coarse.shape[0], _c(fine, np.int64), fine.shape[0], threshold, target, found)
+        coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
     _check(int(bad), keyframes)
     return target, found.astype(bool)
 
@@ -166,17 +184,18 @@ def point_search(
 def line_search(
     maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, normal: FloatArray,
-    usable: NDArray[np.bool_], half_length: int, threshold: float,
+    usable: NDArray[np.bool_], half_length: int, step: float, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Perpendicular search (see correspondence.find_line_correspondences)."""
+    """Perpendicular search over ``+-half_length`` steps of ``step`` px (see
+    correspondence.find_line_correspondences)."""
     assert _LIB is not None
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
-    bad = _LIB.tf_line_search(
+    bad = _LIB.tf_line_search_scaled(
         N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
-        threshold, target, found)
+        step, threshold, target, found)
     _check(int(bad), keyframes)
     return target, found.astype(bool)
 

@@ -67,6 +67,7 @@ A file that is not such a model is an :class:`~turbinefit.errors.InputError`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import queue
@@ -184,18 +185,21 @@ class DetectOptions:
         tip_shift: px at the model's input width the tip channel is moved outward from
             the hub (:attr:`ModelInfo.tip_shift_px`; 0 = none).
         zoom: test-time zoom of small turbines' blade tips (:attr:`ModelInfo.zoom`).
+        input_scale: run the net at this multiple of its input size (None = 1).
     """
 
     flip: bool | None = None
     tip_shift: float | None = None
     zoom: bool | None = None
+    input_scale: float | None = None
 
     def detector(self, model: StrPath | None = None, threads: int | None = None, *,
                  spinning: bool = True) -> HeatmapDetector:
         """A :class:`HeatmapDetector` of ``model`` (None = the shipped one) with these
         options."""
         return HeatmapDetector(model, threads, spinning=spinning, flip=self.flip,
-                               tip_shift=self.tip_shift, zoom=self.zoom)
+                               tip_shift=self.tip_shift, zoom=self.zoom,
+                               input_scale=self.input_scale)
 
     def pool(self, model: StrPath | None = None, workers: int | None = None) -> DetectorPool:
         """A :class:`DetectorPool` of ``workers`` detectors (None = one per core) of
@@ -220,6 +224,13 @@ class HeatmapDetector:
             :attr:`ModelInfo.tip_shift_px`; 0 = the net's own tip channel.
         zoom: test-time zoom of small turbines' blade tips (step 4 of the module
             docstring); None = as the model's metadata says (:attr:`ModelInfo.zoom`).
+        input_scale: run the net at this multiple of its input size (test-time scale:
+            photos resized to ``input_scale`` times ``input_width``, maps that many times
+            larger, :attr:`info` changed to match; None = 1). The shipped net was trained
+            at 320 px: at 2 (640 px) fits from simulated 1280 x 960 photos gain within
+            their noise (``benchmarks/bench_resolution.py --photos``) and real photos are
+            read much worse (``benchmarks/bench_real.py --input-scale 2``;
+            docs/benchmarks.md).
 
     Raises:
         InputError: naming the file if it is missing, not ONNX, of an unsupported opset or
@@ -228,7 +239,8 @@ class HeatmapDetector:
 
     def __init__(self, model: StrPath | None = None, threads: int | None = None, *,
                  spinning: bool = True, flip: bool | None = None,
-                 tip_shift: float | None = None, zoom: bool | None = None) -> None:
+                 tip_shift: float | None = None, zoom: bool | None = None,
+                 input_scale: float | None = None) -> None:
         import onnxruntime as ort
 
         self.path = Path(model) if model is not None else default_model_path()
@@ -246,6 +258,13 @@ class HeatmapDetector:
             raise InputError(f"not a usable ONNX model: {msg}", path=self.path) from None
         meta = dict(self.session.get_modelmeta().custom_metadata_map)
         self.info = ModelInfo.from_metadata(meta, self.path)
+        if input_scale is not None and input_scale != 1.0:
+            if not 0.25 <= input_scale <= 8.0:
+                raise ValueError(f"input scale {input_scale} is outside [0.25, 8]")
+            q = self.info.output_scale
+            self.info = dataclasses.replace(
+                self.info, input_width=q * round(self.info.input_width * input_scale / q),
+                input_height=q * round(self.info.input_height * input_scale / q))
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
         if len(inputs) != 1 or len(outputs) != 1:
             raise InputError(f"model has {len(inputs)} inputs and {len(outputs)} outputs, "

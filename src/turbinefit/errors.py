@@ -36,13 +36,18 @@ class InputError(TurbinefitError):
 def plain_number(value: object) -> str:
     """A number as messages print it: ``0.0``, ``12``, ``1e+300``, ``nan``, never
     ``np.float64(0.0)``. Whole-number types print as integers, other reals with ``repr``
-    precision (so a timestamp keeps its digits); anything else as ``repr``."""
+    precision (so a timestamp keeps its digits; a float32 or float16 with its own
+    shortest digits, ``1.002`` not ``1.0019999742507935``); anything else as ``repr``."""
     import numbers
+
+    import numpy as np
 
     if isinstance(value, bool):
         return repr(value)
     if isinstance(value, numbers.Integral):
         return str(int(value))
+    if isinstance(value, (np.float32, np.float16)):
+        return str(value)
     if isinstance(value, numbers.Real):
         return repr(float(value))
     return repr(value)

@@ -18,6 +18,7 @@ from support import (
     FIT_OUTPUTS,
     N_KEYFRAMES,
     assert_one_line_error,
+    assert_turbine_glb,
     assert_valid_png,
     digest,
     entries,
@@ -60,10 +61,11 @@ def test_fit_joint_with_plots(sim_flight_dir: Path, tmp_path: Path,
     assert np.isfinite(p_out).all() and not np.allclose(p_out, p_in, atol=1e-6)
 
     # config.yaml is the run's configuration (defaults here, with pair_frame="auto"
-    # resolved: GPS/IMU keyframes, no odometry.txt) and loads back
+    # resolved: GPS/IMU keyframes, no odometry.txt; pixel_scale resolved: 160 px maps use
+    # the pixel settings as written) and loads back
     cfg = read_fit_config(out_dir / "config.yaml")
     # no options: the defaults for heat-map files, the pairwise frame resolved
-    assert cfg == FitConfig(pair_frame="measured", **FILE_FIT_DEFAULTS)
+    assert cfg == FitConfig(pair_frame="measured", pixel_scale=1.0, **FILE_FIT_DEFAULTS)
     assert yaml.safe_load((out_dir / "config.yaml").read_text())["turbinefit_version"] == \
         turbinefit.__version__
 
@@ -88,6 +90,8 @@ def test_fit_joint_with_plots(sim_flight_dir: Path, tmp_path: Path,
     assert summary["turbine"]["initial"] == pytest.approx(
         read_turbine_yaml(sim_flight_dir / "turbine.yaml").to_dict(), rel=1e-12)
     assert th.to_dict() != pytest.approx(summary["turbine"]["initial"])
+    # turbine.glb is that turbine, dressed (read back by an independent glTF reader)
+    assert_turbine_glb(out_dir / "turbine.glb", th, cfg.geometry)
 
     # ground truth exists, so accuracy before/after, and the joint fit improves the model
     acc = summary["accuracy"]
@@ -167,7 +171,7 @@ def test_fit_config_file_round_trip(sim_flight_dir: Path, tmp_path: Path,
     assert cfg1 == dataclasses.replace(FitConfig(**FILE_FIT_DEFAULTS), points="interp",
                                        lambda_pair=2.5, robust="huber",
                                        pair_sigma_r_deg=0.2, max_iterations=5,
-                                       pair_frame="measured")  # auto, resolved
+                                       pair_frame="measured", pixel_scale=1.0)  # resolved
     # a previous run's config.yaml as --config; command-line options override it
     second = tmp_path / "second"
     rc, _, err = run(capsys, "fit", str(sim_flight_dir), "--out", str(second), "--no-plots", "--quiet",
@@ -182,7 +186,7 @@ def test_fit_preset(sim_flight_dir: Path, tmp_path: Path, capsys: pytest.Capture
                      "--preset", "all-corr", "--max-iterations", "3")
     assert rc == 0, err
     assert read_fit_config(out_dir / "config.yaml") == dataclasses.replace(
-        PRESETS["all-corr"], max_iterations=3, pair_frame="measured")
+        PRESETS["all-corr"], max_iterations=3, pair_frame="measured", pixel_scale=1.0)
 
 
 def test_fit_never_modifies_its_input(flight_copy: Path, tmp_path: Path,

@@ -198,4 +198,4 @@ def test_the_next_run_removes_the_temporary_folder_of_a_killed_one(
     assert rerun.returncode == 0, rerun.stderr
     assert temporaries(out) == []
     assert sorted(entries(out)) == ["config.yaml", "keyframes.txt", "summary.json",
-                                    "turbine.yaml"]
+                                    "turbine.glb", "turbine.yaml"]

@@ -14,6 +14,7 @@ import yaml
 from support import (
     N_KEYFRAMES,
     assert_one_line_error,
+    assert_turbine_glb,
     assert_valid_png,
     digest,
     entries,
@@ -30,8 +31,8 @@ from turbinefit.io.turbine_yaml import read_turbine_std
 from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
 from turbinefit.solver.config import FitConfig
 
-TRACK_OUTPUTS = {"causal.txt", "keyframes.txt", "turbine.yaml", "latency.csv", "config.yaml",
-                 "summary.json"}
+TRACK_OUTPUTS = {"causal.txt", "keyframes.txt", "turbine.yaml", "turbine.glb", "latency.csv",
+                 "config.yaml", "summary.json"}
 
 
 TRACK_PLOTS = {"latency.png", "errors.png", "scene.png"}
@@ -67,13 +68,15 @@ def test_track_writes_causal_and_final_estimates(sim_flight_dir: Path, tmp_path:
     assert summary["num_keyframes"] == N_KEYFRAMES
     assert summary["config"]["tracker"]["window"] == 5
     # pair_frame="auto" resolved by the first keyframe: no odometry.txt, GPS/IMU keyframes
-    assert FitConfig.from_dict(summary["config"]["fit"]) == FitConfig(pair_frame="measured",
-                                                                      **FILE_FIT_DEFAULTS)
+    assert FitConfig.from_dict(summary["config"]["fit"]) == FitConfig(
+        pair_frame="measured", pixel_scale=1.0, **FILE_FIT_DEFAULTS)
     assert summary["latency"]["median_ms"] == pytest.approx(float(np.median(rows[:, 1])), abs=1e-3)
     acc = summary["accuracy"]
     assert acc["final"]["model_point_error_m"] < acc["initial"]["model_point_error_m"]
     th = read_turbine_yaml(out_dir / "turbine.yaml")
     assert th.to_dict() == pytest.approx(summary["turbine"]["final"], rel=1e-12)
+    assert_turbine_glb(out_dir / "turbine.glb", th,
+                       FitConfig.from_dict(summary["config"]["fit"]).geometry)
     assert f"tracked {N_KEYFRAMES} keyframes" in out and "99th percentile" in out
     # the verdict, its signals and theta's standard deviations (also in turbine.yaml)
     assert summary["verdict"] in ("ok", "doubtful") and f"verdict: {summary['verdict']}" in out

@@ -46,6 +46,34 @@ def test_line_correspondence_along_normal():
     np.testing.assert_allclose(tgt[0, :2, 0], [20.0, 50.0])
 
 
+@pytest.mark.parametrize("k", [2, 4, 7])
+def test_searches_at_k_times_the_resolution_find_the_same_picture(k):
+    """The same blob and ridge at k times the resolution (k times wider), searched with
+    steps of k px over k times the range, are found at k times the position (map pixel
+    j is u = (j + 0.5) k - 0.5 at k times the size), to a fraction of the coarse pixel."""
+    def fine(x):
+        return (np.asarray(x) + 0.5) * k - 0.5
+
+    h, w = 60, 80
+    true = np.array([40.3, 25.7])
+    v, u = np.mgrid[0:h * k, 0:w * k].astype(float)
+    maps = np.zeros((1, 7, h * k, w * k), np.float32)
+    maps[0, 2] = np.exp(-((u - fine(true[0])) ** 2 + (v - fine(true[1])) ** 2) / (2 * (2.0 * k) ** 2))
+    maps[0, 6] = np.exp(-((v - fine(30.4)) ** 2) / (8.0 * k * k))  # horizontal line
+    st = HeatmapStack(maps)
+    uv = fine(np.array([[[48.0, 20.0], [5.0, 5.0]]]))
+    tgt, found = find_point_correspondences(st, np.array([0]), np.array([2, 2]), uv,
+                                            np.array([[True, True]]), 15 * k, 0.3, step=k)
+    assert found.tolist() == [[True, False]]
+    np.testing.assert_allclose(tgt[0, 0], fine(true), atol=0.15 * k)
+    uv = fine(np.array([[[20.0, 38.0], [50.0, 22.0], [50.0, 5.0]]]))
+    normal = np.array([[[0.0, 1.0], [0.0, 1.0], [1.0, 0.0]]])
+    tgt, found = find_line_correspondences(st, np.array([0]), np.array([6, 6, 6]), uv, normal,
+                                           np.ones((1, 3), bool), 12 * k, 0.3, step=k)
+    assert found.tolist() == [[True, True, False]]
+    np.testing.assert_allclose(tgt[0, :2, 1], fine(30.4), atol=0.15 * k)
+
+
 @pytest.mark.parametrize("along_normal", [False, True])
 def test_correspondence_gradient_and_gauss_newton_hessian(along_normal):
     rng = np.random.default_rng(5)

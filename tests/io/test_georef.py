@@ -15,6 +15,7 @@ from turbinefit.io.georef import (
     Georef,
     format_georef_yaml,
     gimbal_from_world_T_cam,
+    location_text,
     read_georef_yaml,
     turbine_location,
     world_T_cam_from_gimbal,
@@ -100,8 +101,9 @@ def test_bad_georef_yaml(tmp_path: Path, text: str, field: str | None) -> None:
 
 def test_fit_outputs_gain_wgs84(tmp_path: Path) -> None:
     poses = dji_test_poses(4)
-    write_turbine_yaml(tmp_path / "turbine.yaml", NRE, comment="fitted")
-    write_georef_outputs(tmp_path, ORIGIN, np.arange(4.0), poses, NRE)
+    write_turbine_yaml(tmp_path / "turbine.yaml", NRE, comment="fitted",
+                       extra=location_text(ORIGIN, NRE))
+    write_georef_outputs(tmp_path, ORIGIN, np.arange(4.0), poses)
     # the turbine file still reads, and says where the base is
     assert read_turbine_yaml(tmp_path / "turbine.yaml") == NRE
     lat, lon = turbine_location(tmp_path / "turbine.yaml") or (0.0, 0.0)
@@ -117,10 +119,9 @@ def test_fit_outputs_gain_wgs84(tmp_path: Path) -> None:
 
 
 def test_no_georef_no_wgs84_outputs(tmp_path: Path) -> None:
+    assert location_text(None, NRE) == ""
     write_turbine_yaml(tmp_path / "turbine.yaml", NRE)
-    before = (tmp_path / "turbine.yaml").read_text()
-    write_georef_outputs(tmp_path, None, np.arange(4.0), dji_test_poses(4), NRE)
-    assert (tmp_path / "turbine.yaml").read_text() == before
+    write_georef_outputs(tmp_path, None, np.arange(4.0), dji_test_poses(4))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["turbine.yaml"]
 
 

@@ -113,3 +113,36 @@ def test_heatmap_values_any_dtype(dtype: type) -> None:
 def test_plain_number() -> None:
     assert [plain_number(x) for x in (np.float64(0.0), np.int64(12), np.float32(0.5), 1e300,
                                       True, "x")] == ["0.0", "12", "0.5", "1e+300", "True", "'x'"]
+
+
+@pytest.mark.parametrize("native", ["1", "0"])
+@pytest.mark.parametrize(("value", "message"), [
+    (np.nan, r"channel 4 \(line_tower\) holds NaN"),
+    (np.inf, r"channel 4 \(line_tower\) holds inf"),
+    (1.002, r"channel 4 \(line_tower\) holds 1\.002"),
+    (-0.0011, r"channel 4 \(line_tower\) holds -0\.0011"),
+])
+def test_mapped_heatmap_values_name_the_first_bad_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, native: str, value: float,
+        message: str) -> None:
+    """The memory-mapped check (compiled one-pass kernel, or numpy reading each file) names
+    the first bad keyframe's file, whichever bad files follow; values within the tolerance
+    pass."""
+    from turbinefit import _native
+    from turbinefit.io.heatmap_files import read_heatmaps
+
+    if native == "1" and _native._LIB is None:
+        pytest.skip("compiled kernels not built")
+    monkeypatch.setenv("TURBINEFIT_NATIVE", native)
+    t = np.arange(9, dtype=float)
+    for k in range(9):
+        maps = np.full((7, 24, 32), 0.5, dtype=np.float32)
+        maps[0, 0, 0], maps[1, -1, -1] = -0.00099, 1.00099  # inside the tolerance
+        np.save(tmp_path / f"{t[k]:.6f}.npy", maps)
+    read_heatmaps(tmp_path, t)  # all good
+    for k in (6, 3, 8):  # bad files at 3, 6 and 8: 3 is named
+        maps = np.load(tmp_path / f"{t[k]:.6f}.npy")
+        maps[4, 5, 7] = value
+        np.save(tmp_path / f"{t[k]:.6f}.npy", maps)
+    with pytest.raises(InputError, match=r"3\.000000\.npy: " + message):
+        read_heatmaps(tmp_path, t)

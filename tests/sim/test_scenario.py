@@ -128,3 +128,30 @@ def test_a_large_camera_gets_small_heatmaps() -> None:
         ).width == 400
     with pytest.raises(ValueError, match="heatmap_size"):
         SimConfig(width=640, height=480, heatmap_size=(300, 300))
+
+
+def test_heatmaps_at_a_larger_size_are_the_same_picture() -> None:
+    """Blob widths and false streaks follow the maps' width; the maps of one view at 1280
+    x 960, averaged over 4 x 4 blocks, are close to those at 320 x 240."""
+    from turbinefit.sim.render import HeatmapNoise
+    from turbinefit.sim.scenario import SimConfig, simulate_flight
+
+    noise = HeatmapNoise(spurious_rate=1.0, spurious_length_px=(5.0, 40.0))
+    small = SimConfig(n_keyframes=2, heatmap_noise=noise)
+    big = SimConfig(n_keyframes=2, width=1280, height=960, heatmap_size=(1280, 960),
+                    heatmap_noise=noise)
+    assert big.render_config().sigma_px == 4 * small.render_config().sigma_px
+    assert big.render_config().noise.spurious_length_px == (20.0, 160.0)
+    assert small.render_config().noise == noise
+    # pixel noise drawn per 4 x 4 block at 1280 px: the noise of the 320 px maps, finer
+    assert (big.render_config().noise_block, small.render_config().noise_block) == (4, 1)
+    noisy = simulate_flight(replace(big, heatmap_noise=HeatmapNoise(pixel_sigma=0.05)))
+    blocks = np.asarray(noisy.heatmaps[0]).reshape(7, 240, 4, 320, 4)
+    lo, hi = blocks.min(axis=(2, 4)), blocks.max(axis=(2, 4))
+    # background blocks (noise above the clip at 0 everywhere in them) are constant
+    assert (lo > 0).sum() > 10_000 and np.mean(hi[lo > 0] == lo[lo > 0]) > 0.9
+    clean = [simulate_flight(SimConfig(n_keyframes=2, width=w, height=3 * w // 4,
+                                       heatmap_size=(w, 3 * w // 4), heatmap_noise=HeatmapNoise()))
+             for w in (320, 1280)]
+    coarse = clean[1].heatmaps[1].reshape(7, 240, 4, 320, 4).mean(axis=(2, 4))
+    assert np.abs(coarse - clean[0].heatmaps[1]).max() < 0.05

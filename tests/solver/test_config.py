@@ -42,3 +42,29 @@ def test_pair_frame_auto_resolves_from_the_measurements():
     assert pair_frame_line(auto, resolve_pair_frame(auto, False)) == (
         "pairwise frame: measured (GPS/IMU keyframes)")
     assert pair_frame_line(used, used) == "pairwise frame: estimated (set in the options)"
+
+
+@pytest.mark.parametrize(("width", "scale"), [(160, 1.0), (320, 1.0), (640, 2.0), (1280, 4.0),
+                                              (5280, 16.5)])
+def test_pixel_settings_follow_the_maps_width(width, scale):
+    from turbinefit.solver.config import PIXEL_FIELDS, resolve_pixel_scale
+
+    cfg = FitConfig(pixel_sigma=2.0)
+    used = resolve_pixel_scale(cfg, width)
+    assert used.pixel_scale == scale
+    for name in PIXEL_FIELDS:  # stated at 320 px, used in the maps' pixels
+        assert used.px(name) == pytest.approx(getattr(cfg, name) * scale)
+    assert used.px("corr_radius") == 20.0 * scale and used.px("pixel_sigma") == 2.0 * scale
+    assert used.robust_scale == cfg.robust_scale  # whitened units: follows pixel_sigma
+    # resolving is idempotent, and a scale that is set is kept whatever the maps
+    assert resolve_pixel_scale(used, 320) == used
+    fixed = FitConfig(pixel_scale=1.0)
+    assert resolve_pixel_scale(fixed, width).px("line_search") == 20.0
+    with pytest.raises(ValueError, match="not a pixel setting"):
+        used.px("robust_scale")
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("inf"), True])
+def test_pixel_scale_must_be_positive_or_unset(bad):
+    with pytest.raises(ValueError, match="pixel_scale"):
+        FitConfig(pixel_scale=bad)

@@ -168,9 +168,30 @@ def test_default_fit_picks_the_pair_frame_of_the_measurements(odometry_flight):
     assert FitProblem(f, FitConfig()).config.pair_frame == want
     res = fit(f)
     assert res.config.pair_frame == want
-    assert dataclasses.replace(res.config, pair_frame="auto") == FitConfig()
+    assert dataclasses.replace(res.config, pair_frame="auto", pixel_scale=None) == FitConfig()
+    assert res.config.pixel_scale == 1.0  # maps no wider than 320 px: settings as written
     a0 = accuracy(f.world_T_cam, f.turbine, f.gt_world_T_cam, f.gt_turbine)
     a = accuracy(res.world_T_cam, res.turbine, f.gt_world_T_cam, f.gt_turbine)
     assert a.position_error_m < 0.45 < a0.position_error_m
     assert a.orientation_error_deg < 0.35
     assert a.model_point_error_m < 0.35 < a0.model_point_error_m
+
+
+def test_ideal_maps_at_twice_the_resolution_fit_to_the_same_result():
+    """The same flight's noiseless maps at 320 x 240 and 640 x 480 fit to nearly the same
+    poses and turbine: the pixel settings follow the maps' scale. With the 320 px values
+    used as 640 px values (pixel_scale 1), the turbine ends measurably worse."""
+    cfg = FitConfig(lines="corr", line_residual="normal", robust="cauchy")
+    results = {}
+    for width, scale in ((320, None), (640, None), (640, 1.0)):
+        f = simulated_flight(20, "noiseless", seed=5, width=width,
+                             heatmap_size=(width, width * 3 // 4))
+        res = fit(f, dataclasses.replace(cfg, pixel_scale=scale))
+        results[width, scale] = (res, accuracy(res.world_T_cam, res.turbine, f.gt_world_T_cam,
+                                               f.gt_turbine))
+    (r1, a1), (r2, a2), (_, a_px) = results.values()
+    assert (r1.config.pixel_scale, r2.config.pixel_scale) == (1.0, 2.0)
+    assert a2.position_error_m == pytest.approx(a1.position_error_m, abs=0.02)
+    assert a2.model_point_error_m == pytest.approx(a1.model_point_error_m, abs=0.02)
+    assert a2.orientation_error_deg == pytest.approx(a1.orientation_error_deg, abs=0.02)
+    assert a_px.model_point_error_m > 2 * a2.model_point_error_m

@@ -31,13 +31,16 @@ EXIT_INTERRUPTED = 130
 #: Every command: name -> one line of help (the module is ``turbinefit.cli.<name>``).
 COMMANDS: dict[str, str] = {
     "simulate": "write a simulated flight folder with ground truth",
+    "init": "estimate the initial turbine.yaml of a flight from its images",
     "fit": "optimise poses and turbine of a flight folder",
     "track": "replay a flight keyframe by keyframe (in-flight tracking)",
+    "coverage": "what each keyframe of a fit shows of each blade and the tower, at what mm/px",
+    "plan": "waypoints of the next inspection flight round a fitted turbine",
     "experiment": "Monte Carlo studies of the paper (simulated flights)",
     "report": "rebuild an experiment's figures and report from its rows",
     "import": "make a flight folder from DJI photos or a ROS bag",
     "detect": "heat-maps of photos with the CNN (onnxruntime)",
-    "evaluate": "detection metrics of the CNN on labelled photos (COCO keypoints)",
+    "evaluate": "detection metrics of the CNN on labelled photos (keypoints, boxes, masks)",
     "train": "train the heat-map CNN on rendered photos (needs turbinefit[train])",
 }
 

@@ -88,6 +88,14 @@ def turbine_line(th: Any) -> str:
             f"{th.blade_length:.2f} m")
 
 
+def init_line(init: Any) -> str:
+    """The line ``fit`` and ``track`` print when they estimated the initial turbine
+    (an :class:`~turbinefit.jobs.init.InitSummary`)."""
+    return (f"no turbine.yaml: initial turbine estimated from the images (turbinefit init) "
+            f"from {init.keyframes_seen} of {init.keyframes} keyframes in {init.seconds:.2f} s; "
+            f"{turbine_line(init.turbine).removeprefix('turbine: ')}")
+
+
 def verdict_line(verdict: str, std: Any) -> str:
     """The verdict and theta's standard deviations (``std``: (7,) or None), in one line."""
     if std is None:
@@ -233,9 +241,10 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
         else:
             kw["type"] = _integer if kind is int else number
             kw["metavar"] = "N" if kind is int else "X"
+        shown = "auto" if value is None else value  # unset: resolved from the data
         group.add_argument(*flags, dest=f.name, default=None,
                            help=f"{text} (default: {value:g})" if isinstance(value, float)
-                           else f"{text} (default: {value})", **kw)
+                           else f"{text} (default: {shown})", **kw)
 
 
 def fit_option_names(args: argparse.Namespace) -> dict[str, Any]:

@@ -10,7 +10,8 @@ from typing import Any
 
 from turbinefit.cli.common import positive_int, seed
 
-STUDY_NAMES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry")
+STUDY_NAMES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry",
+               "init")
 
 DESCRIPTION = """\
 Run (or resume) a Monte Carlo study: many simulated flights, each fitted under
@@ -26,6 +27,7 @@ and report.md (medians and 90th percentiles, figures embedded).
   quality  heat-map faults, blur and a second turbine in view
   length   flight length (25-400 keyframes)
   odometry pairwise frame measured / estimated / auto on GPS/IMU and odometry flights
+  init     turbinefit init then fit: from nothing, --near (<= 15 m), sizes (+-15 %)
   all      all of them, into OUT_DIR/<study>/
 
 Re-running the same command resumes without redoing finished rows. Flights run

@@ -14,6 +14,7 @@ from turbinefit.cli.common import (
     add_photo_options,
     detect_options,
     fit_base_and_options,
+    init_line,
     pair_frame_report,
     turbine_line,
     verdict_line,
@@ -26,9 +27,10 @@ on the heat-maps and the GPS/IMU relative poses: first two correspondence
 stages (align: the trajectory moves nearly rigidly; match: each keyframe), then
 the configured cost.
 
-Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, summary.json (costs,
-iterations, timings, and errors before/after when ground truth exists),
-config.yaml (the resolved options) and plots. Every option of
+Writes OUT_DIR/keyframes.txt (TUM), turbine.yaml, turbine.glb (the fitted
+turbine as a 3-D model for any glTF viewer), summary.json (costs, iterations,
+timings, and errors before/after when ground truth exists), config.yaml (the
+resolved options) and plots. Every option of
 turbinefit.FitConfig can be set in a --config YAML file; command-line options
 override it."""
 
@@ -85,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
               f"{r.rounds} round(s), {r.termination}")
         if report.summary.defaults is not None:
             print(f"options: the defaults for {report.summary.defaults}")
+        if report.summary.init is not None:
+            print(init_line(report.summary.init))
         print(f"cost {r.initial_cost:.6g} -> {r.final_cost:.6g}")
         print(pair_frame_report(base, options, r.config))
         print(turbine_line(r.turbine))

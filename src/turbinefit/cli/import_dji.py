@@ -37,9 +37,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                          "and longitude, as a georeferenced fit writes it, its base is "
                          "moved there in this flight's frame)")
     turbine.add_argument("--turbine", type=_latlon, default=None, metavar="LAT,LON",
-                         help="the turbine's position: needs turbine initialisation, not "
-                         "built yet; prints the base's position in this flight's frame "
-                         "and writes nothing")
+                         help="the turbine's position: turbine.yaml is estimated from the "
+                         "photos near it (turbinefit init --near; the CNN detects every "
+                         "photo)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace FLIGHT_DIR if it exists (only if it holds nothing but a "
                    "flight folder)")
@@ -88,6 +88,6 @@ def run(args: argparse.Namespace) -> int:
         if names:
             print(f"note: {len(names)} photo(s) with {what} (first: {names[0]})")
     print(f"turbine.yaml: {s.turbine}" if s.turbine else
-          "no turbine.yaml: add one (or import again with --turbine-yaml FILE) before "
-          "'turbinefit fit'")
+          "no turbine.yaml: fit and track will estimate one (or write it first: turbinefit "
+          "init FLIGHT_DIR --near-wgs84 LAT,LON --out FLIGHT_DIR/turbine.yaml)")
     return 0

@@ -15,6 +15,7 @@ from turbinefit.cli.common import (
     degrees,
     detect_options,
     fit_base_and_options,
+    init_line,
     pair_frame_report,
     positive_int,
     turbine_line,
@@ -30,7 +31,8 @@ after each one and folds older keyframes into a prior (marginalisation). A live
 status line shows the keyframe, its update time and the current turbine.
 
 Writes OUT_DIR/causal.txt (TUM: each keyframe's estimate when it arrived),
-keyframes.txt and turbine.yaml (the final estimates, as fit writes them),
+keyframes.txt, turbine.yaml and turbine.glb (the final estimates, as fit writes
+them),
 latency.csv (timestamp,latency_ms), config.yaml, summary.json (latency figures;
 errors of the causal and final estimates when ground truth exists) and plots
 (latency.png, errors.png, scene.png). Fit options as for `turbinefit fit`."""
@@ -127,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
                   f"{lat.median_ms:.1f} ms, 99th percentile {lat.p99_ms:.1f} ms, max "
                   f"{lat.max_ms:.1f} ms, trend {lat.slope_ms_per_1000_keyframes:+.2f} ms per "
                   "1000 keyframes")
+        if s.init is not None:
+            print(init_line(s.init))
         print(turbine_line(report.turbine))
         print(verdict_line(s.verdict, None if s.signals is None else s.signals.theta_std))
         if s.defaults is not None:

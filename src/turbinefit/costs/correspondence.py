@@ -10,6 +10,12 @@
   ``threshold`` (bracketed by two searched pixels inside the image), refined by a
   log-parabola along the normal, is the correspondence.
 
+Both searches take a ``step`` [px]: the spacing of their samples (coarse 2 steps, fine 1
+step, neighbours of the log-parabola 1 step away). 1 on maps of the reference width;
+maps ``k`` times wider (``k`` times wider peaks, :attr:`FitConfig.pixel_scale
+<turbinefit.solver.config.FitConfig.pixel_scale>`) are searched with ``step = k``: the same
+samples over the same part of the view, whatever the resolution.
+
 Residual (:func:`correspondence_terms`): ``sqrt(lambda) (uv - a') / sigma_px`` for each
 point with a correspondence (the paper's squared 2-D distance, whitened by the expected
 detection noise ``sigma_px``), or, for line samples, optionally its component along the
@@ -72,7 +78,7 @@ def correspondence_terms(pr: Projection, target: FloatArray, found: NDArray[np.b
     return CorrespondenceTerms(s, use, g, H)
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=16)
 def _disc_offsets(radius: int, step: int) -> NDArray[np.int64]:
     r = np.arange(-radius, radius + 1, step)
     dv, du = np.meshgrid(r, r, indexing="ij")
@@ -80,8 +86,11 @@ def _disc_offsets(radius: int, step: int) -> NDArray[np.int64]:
     return np.stack([du[keep], dv[keep]], axis=-1).astype(np.int64)  # (K, 2) (du, dv)
 
 
-_SQUARE5 = np.ascontiguousarray(
-    np.stack(np.meshgrid(np.arange(-2, 3), np.arange(-2, 3)), -1).reshape(-1, 2), dtype=np.int64)
+@lru_cache(maxsize=16)
+def _square5(step: int) -> NDArray[np.int64]:
+    """The 5 x 5 offsets (du, dv) ``step`` px apart (25, 2)."""
+    r = step * np.arange(-2, 3)
+    return np.ascontiguousarray(np.stack(np.meshgrid(r, r), -1).reshape(-1, 2), dtype=np.int64)
 
 
 #: Values below this are raised to it before the log in :func:`_peak_offset`.
@@ -136,35 +145,41 @@ def find_point_correspondences(
     usable: NDArray[np.bool_],
     radius: float,
     threshold: float,
+    step: int = 1,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Circular-window search. Returns targets (N, M, 2) [px] and found (N, M).
 
-    The window is searched coarse-to-fine: every second pixel of the disc, then the 5x5
-    pixels around the best one. For heat-map peaks at least ~1.5 px wide (any blurred CNN
-    output) this finds the same maximum as a dense search at a quarter of the cost.
+    The window is searched coarse-to-fine: every second ``step`` of the disc, then the
+    5x5 samples ``step`` px apart around the best one; the sub-pixel peak is the
+    log-parabola through the neighbours ``step`` px away. With ``step`` 1 and heat-map
+    peaks at least ~1.5 px wide (any blurred CNN output) this finds the same maximum as a
+    dense search at a quarter of the cost; peaks ``step`` times wider are searched the
+    same way at the same cost.
     """
     H, W = heatmaps.height, heatmaps.width
     R = max(1, round(radius))
+    s = max(1, int(step))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
         return _native.point_search(maps, W, H, keyframes, channels, uv, usable, R,
-                                    _disc_offsets(R, 2), _SQUARE5, threshold)
+                                    _disc_offsets(R, 2 * s), _square5(s), s, threshold)
     centre = np.rint(uv).astype(np.int64)
     base = (channels.astype(np.int64) * (H * W))[None, :, None]
-    _, bu, bv = _window_max(heatmaps, keyframes, base, centre, _disc_offsets(R, 2), usable,
-                            centre, R)
+    _, bu, bv = _window_max(heatmaps, keyframes, base, centre, _disc_offsets(R, 2 * s),
+                            usable, centre, R)
     coarse = np.stack([bu, bv], axis=-1)
-    peak, bu, bv = _window_max(heatmaps, keyframes, base, coarse, _SQUARE5, usable, centre, R)
+    peak, bu, bv = _window_max(heatmaps, keyframes, base, coarse, _square5(s), usable,
+                               centre, R)
     # a peak on the image border is not bracketed: the true maximum may lie outside
-    inner = (bu > 0) & (bu < W - 1) & (bv > 0) & (bv < H - 1)
+    inner = (bu >= s) & (bu <= W - 1 - s) & (bv >= s) & (bv <= H - 1 - s)
     found = usable & (peak >= threshold) & inner
-    # sub-pixel refinement from the 4-neighbourhood
+    # sub-pixel refinement from the neighbours one step away
     nb = np.stack([
-        np.maximum(bu - 1, 0) + bv * W, np.minimum(bu + 1, W - 1) + bv * W,
-        bu + np.maximum(bv - 1, 0) * W, bu + np.minimum(bv + 1, H - 1) * W], -1)
+        np.clip(bu - s, 0, W - 1) + bv * W, np.clip(bu + s, 0, W - 1) + bv * W,
+        bu + np.clip(bv - s, 0, H - 1) * W, bu + np.clip(bv + s, 0, H - 1) * W], -1)
     nvals = heatmaps.gather(keyframes, base + nb)
-    du = _peak_offset(nvals[..., 0], peak, nvals[..., 1])
-    dv = _peak_offset(nvals[..., 2], peak, nvals[..., 3])
+    du = s * _peak_offset(nvals[..., 0], peak, nvals[..., 1])
+    dv = s * _peak_offset(nvals[..., 2], peak, nvals[..., 3])
     target = np.stack([bu + du, bv + dv], axis=-1).astype(np.float64)
     return target, found
 
@@ -198,30 +213,33 @@ def find_line_correspondences(
     usable: NDArray[np.bool_],
     half_length: float,
     threshold: float,
+    step: float = 1.0,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Search along unit normals (N, M, 2). Returns targets (N, M, 2) [px] and found (N, M).
 
     The profile is sampled bilinearly at exact positions on the normal (rounding them to
-    pixels would sample it unevenly and bias the peak), coarse-to-fine: every 2 px over
-    ``+-L``, then 1 px either side of the best. For ridges at least ~1.5 px wide (any
-    blurred CNN output) this finds the same maximum as a dense 1 px search, in a little
-    over half the reads. The maximum must be bracketed by two valid samples 1 px away
-    (strictly inside the search, inside the image).
+    pixels would sample it unevenly and bias the peak), coarse-to-fine: every 2 steps of
+    ``step`` px over ``+-L`` (``half_length`` in whole steps), then 1 step either side of
+    the best. For ridges at least ~1.5 steps wide (any blurred CNN output) this finds the
+    same maximum as a dense search of one step, in a little over half the reads. The
+    maximum must be bracketed by two valid samples 1 step away (strictly inside the
+    search, inside the image).
     """
     H, W = heatmaps.height, heatmaps.width
-    L = max(1, round(half_length))
+    st = float(step)
+    L = max(1, round(half_length / st))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
         return _native.line_search(maps, W, H, keyframes, channels, uv, normal, usable, L,
-                                   threshold)
+                                   st, threshold)
     N, M = uv.shape[:2]
-    coarse = np.arange(-L, L + 1, 2, dtype=np.float64)
+    coarse = np.arange(-L, L + 1, 2, dtype=np.float64) * st
     vc = _profile(heatmaps, keyframes, channels, uv, normal, usable,
                   np.broadcast_to(coarse, (N, M, coarse.size)))
     kc = np.argmax(vc, axis=-1)
     sc = coarse[kc]
     vf = _profile(heatmaps, keyframes, channels, uv, normal, usable,
-                  sc[..., None] + np.array([-1.0, 1.0]))
+                  sc[..., None] + np.array([-st, st]))
     take = np.take_along_axis
     v_c = take(vc, kc[..., None], axis=-1)[..., 0]
     v_cm = np.where(kc > 0, take(vc, np.maximum(kc - 1, 0)[..., None], axis=-1)[..., 0], -1.0)
@@ -233,9 +251,9 @@ def find_line_correspondences(
     peak = take(cand, j[..., None], axis=-1)[..., 0]
     vm = np.choose(j, [v_cm, vf[..., 0], v_c])
     vp = np.choose(j, [v_c, vf[..., 1], v_cp])
-    best = sc + (j - 1)
-    bracketed = (best > -L) & (best < L) & (vm >= 0.0) & (vp >= 0.0)
+    best = sc + (j - 1) * st
+    bracketed = (best > -L * st) & (best < L * st) & (vm >= 0.0) & (vp >= 0.0)
     found = usable & (peak >= threshold) & bracketed
-    s = best + _peak_offset(vm, peak, vp)
+    s = best + st * _peak_offset(vm, peak, vp)
     target = uv + s[..., None] * normal
     return target, found

@@ -22,6 +22,11 @@ Studies:
 * ``length``: flight length, 25 to 400 keyframes along the same inspection path;
 * ``odometry``: the pairwise frame (measured, estimated, auto; and corr-normal with auto)
   on flights with GPS/IMU keyframes and on flights with body-frame odometry (half each).
+* ``init``: ``turbinefit init`` then the fit (command-line defaults), from the images
+  alone, ``near`` a position up to 15 m from the base, and with hub height and rotor
+  diameter wrong by up to 15 %, against the flight's noisy turbine.yaml; headings and
+  blade rotations uniform over their periods, both odometry kinds (the ``init_`` errors
+  are then those of the estimate).
 """
 
 from __future__ import annotations
@@ -50,7 +55,8 @@ from turbinefit.experiments.sweep import (
 )
 
 #: Study names, in the order ``all`` runs them.
-STUDIES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry")
+STUDIES = ("unary", "joint", "turbine", "roll", "basin", "quality", "length", "odometry",
+           "init")
 #: The paper's four unary configurations (points, lines).
 UNARY = {
     "points corr, lines interp": {"points": "corr", "lines": "interp"},
@@ -66,6 +72,8 @@ REPORT_FILE = "report.md"
 
 
 _JOINT = {"joint": {"preset": "paper-best"}}
+#: The command-line defaults of a fit on heat-map files (turbinefit.jobs.sources).
+_CLI = {"lines": "corr", "line_residual": "normal", "robust": "cauchy"}
 _JOINT_POSE = {**_JOINT, "pose-only": {"preset": "pose-only"}}
 #: The pairwise frames of the odometry study (the paper's best unary terms each).
 _FRAMES = {"measured": {"preset": "paper-best", "pair_frame": "measured"},
@@ -87,6 +95,13 @@ _STUDY_SWEEPS: dict[str, tuple[int, dict[str, Any]]] = {
                                                          "points interp, lines interp")}}),
     "length": (60, {"keyframes": 25, "keyframes_max": 400, "configs": _JOINT}),
     "odometry": (60, {"odometry": 0.5, "configs": _FRAMES}),
+    # turbinefit init, then the fit (command-line defaults): headings and blade rotations
+    # are uniform over their periods (the simulator's), both odometry kinds
+    "init": (60, {"odometry": 0.5, "configs": {
+        "init from nothing": {**_CLI, "init": "nothing"},
+        "init near (<= 15 m)": {**_CLI, "init": "near"},
+        "init with sizes (+-15 %)": {**_CLI, "init": "sizes"},
+        "turbine.yaml": dict(_CLI)}}),
 }
 
 

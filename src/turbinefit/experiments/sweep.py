@@ -206,9 +206,37 @@ def read_sweep_config(path: str | os.PathLike[str]) -> SweepConfig:
         raise InputError(str(exc), path) from None
 
 
+#: How a config of a sweep may start from ``turbinefit init`` instead of the flight's
+#: noisy turbine (its ``init`` option): from the images alone, ``near`` a position up to
+#: :data:`INIT_NEAR_M` m from the base, or with ``sizes`` (hub height and rotor diameter)
+#: wrong by up to :data:`INIT_SIZE_ERROR`.
+INIT_MODES = ("nothing", "near", "sizes")
+INIT_NEAR_M = 15.0
+INIT_SIZE_ERROR = 0.15
+
+
+def init_start(flight: Any, mode: str, rng: np.random.Generator) -> TurbineParams:
+    """The turbine ``turbinefit init`` estimates for a sweep's flight (:data:`INIT_MODES`)."""
+    from turbinefit.solver.init import TurbinePrior, initial_turbine
+
+    truth = flight.gt_turbine
+    prior = TurbinePrior()
+    if mode == "near":
+        r, a = INIT_NEAR_M * math.sqrt(rng.uniform()), rng.uniform(0, 2 * math.pi)
+        prior = TurbinePrior(near_xy=(truth.base_x + r * math.cos(a),
+                                      truth.base_y + r * math.sin(a)))
+    elif mode == "sizes":
+        e = rng.uniform(-INIT_SIZE_ERROR, INIT_SIZE_ERROR, 2)
+        prior = TurbinePrior(hub_height=truth.tower_height * (1 + e[0]),
+                             blade_length=truth.blade_length * (1 + e[1]))
+    return initial_turbine(flight.heatmaps, flight.camera, flight.world_T_cam, prior).turbine
+
+
 def fit_config(configs: dict[str, dict[str, Any]], name: str) -> FitConfig:
     """The :class:`FitConfig` of configuration ``name`` (ValueError naming it if bad)."""
-    opts = configs[name]
+    opts = {k: v for k, v in configs[name].items() if k != "init"}
+    if configs[name].get("init", "nothing") not in INIT_MODES:
+        raise ValueError(f"configs.{name}.init: must be one of {', '.join(INIT_MODES)}")
     if not isinstance(opts, dict):
         raise ValueError(f"configs.{name}: must be a mapping of fit options")
     opts = dict(opts)
@@ -318,11 +346,21 @@ def run_flight(cfg: SweepConfig, spec: FlightSpec, configs: list[str]) -> list[d
     for name in configs:
         fc = fit_config(cfg.configs, name)
         row = {**base, "config": name}
-        row.update(_errors("init_", flight.world_T_cam, flight.turbine, flight.gt_world_T_cam,
-                           flight.gt_turbine, fc.geometry))
+        start = flight
+        mode = cfg.configs[name].get("init")
         t0 = time.perf_counter()
+        if mode is not None:
+            try:
+                start = dataclasses.replace(flight, turbine=init_start(
+                    flight, mode, np.random.default_rng([spec.seed, 30])))
+            except Exception as exc:  # e.g. a parameter the images do not determine
+                rows.append({**row, "status": "error", "reason": f"init: {exc}",
+                             "time_s": time.perf_counter() - t0})
+                continue
+        row.update(_errors("init_", start.world_T_cam, start.turbine, flight.gt_world_T_cam,
+                           flight.gt_turbine, fc.geometry))
         try:
-            res = fit(flight, fc)
+            res = fit(start, fc)
             errs = _errors("final_", res.world_T_cam, res.turbine, flight.gt_world_T_cam,
                            flight.gt_turbine, fc.geometry)
             bad = [k for k, v in errs.items() if not math.isfinite(v)]

@@ -103,6 +103,12 @@ def process_pool(workers: int) -> Iterator[cf.ProcessPoolExecutor]:
             except BaseException:
                 kill_workers(pool)
                 pool.shutdown(wait=False, cancel_futures=True)
+                # let the pool's manager thread see its killed workers and close its wake-up
+                # pipe now: at interpreter exit Python 3.11 would race it, writing to that
+                # pipe as it closes ("Exception ignored ... Bad file descriptor")
+                manager = getattr(pool, "_executor_manager_thread", None)
+                if manager is not None:
+                    manager.join(timeout=5.0)
                 raise
     finally:
         if saved is None:

@@ -43,6 +43,7 @@ All failures are :class:`turbinefit.errors.InputError` naming the path concerned
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import errno
 import os
@@ -119,19 +120,25 @@ def _owner_gone(match: re.Match[str]) -> bool:
     return False
 
 
+def _hidden_entries(folder: Path, name: str | None) -> list[tuple[str, re.Match[str]]]:
+    """The hidden entries in ``folder`` (those of ``name``, or all) with their parts; none
+    if the folder cannot be listed."""
+    try:
+        entries = [e.name for e in os.scandir(folder)]
+    except OSError:
+        return []
+    return [(entry, m) for entry in entries if (m := _HIDDEN.fullmatch(entry)) is not None
+            and (name is None or m["name"] == name)]
+
+
 def remove_stale_temporaries(folder: StrPath, name: str | None = None) -> list[Path]:
     """Remove the hidden temporary entries in ``folder`` (those of ``name``, or all) left by
     a killed process (see the module docstring); returns those removed or put back. Never
     raises: what cannot be removed stays."""
     root = Path(folder)
     done: list[Path] = []
-    try:
-        entries = [e.name for e in os.scandir(root)]
-    except OSError:
-        return done
-    for entry in entries:
-        m = _HIDDEN.fullmatch(entry)
-        if m is None or (name is not None and m["name"] != name) or not _owner_gone(m):
+    for entry, m in _hidden_entries(root, name):
+        if not _owner_gone(m):
             continue
         p, final = root / entry, root / m["name"]
         with contextlib.suppress(OSError):
@@ -152,15 +159,9 @@ _RESERVED: dict[Path, Path] = {}
 def _live_owner(folder: Path, name: str) -> int | None:
     """The pid of another live process of this host that is writing ``folder/name`` (a
     temporary or reserving entry of it), or None."""
-    try:
-        entries = [e.name for e in os.scandir(folder)]
-    except OSError:
-        return None
-    for entry in entries:
-        m = _HIDDEN.fullmatch(entry)
-        if (m is not None and m["name"] == name and m["tag"] in ("tmp", "lock")
-                and m["host"] == _host() and int(m["pid"]) != os.getpid()
-                and not _owner_gone(m)):
+    for _, m in _hidden_entries(folder, name):
+        if (m["tag"] in ("tmp", "lock") and m["host"] == _host()
+                and int(m["pid"]) != os.getpid() and not _owner_gone(m)):
             return int(m["pid"])
     return None
 
@@ -181,10 +182,6 @@ def reserve_output(path: StrPath) -> None:
     except OSError:
         return  # a folder we may not write to: check_output_dir says so
     _RESERVED[p] = lock
-    if len(_RESERVED) == 1:
-        import atexit
-
-        atexit.register(release_all_outputs)
     pid = _live_owner(p.parent, p.name)
     if pid is not None:
         release_output(p)
@@ -204,6 +201,9 @@ def release_all_outputs() -> None:
     """End every reservation of this process (at exit, and when a command ends)."""
     for p in list(_RESERVED):
         release_output(p)
+
+
+atexit.register(release_all_outputs)
 
 
 def _make_parent(path: Path) -> None:

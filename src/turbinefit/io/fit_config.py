@@ -80,7 +80,7 @@ def _typed_options(data: dict[Any, Any], path: Path) -> dict[str, Any]:
         kind = kinds.get(name)
         if kind == "int" and (isinstance(v, bool) or not isinstance(v, int)):
             raise InputError(f"{name}: must be a whole number (got {v!r})", path)
-        if kind == "float":
+        if kind == "float" or (kind == "float | None" and v is not None):
             out[name] = number(name, v)
     if "geometry" in data:
         geo = data["geometry"]

@@ -5,7 +5,8 @@ Layout (names exact)::
     <folder>/
         camera.yaml                 intrinsics, ROS camera_info YAML        (required)
         keyframes.txt               TUM, initial world_T_cam per keyframe   (required)
-        turbine.yaml                initial turbine parameters              (required)
+        turbine.yaml                initial turbine parameters              (optional: without
+                                    it, fit and track estimate one, turbinefit.jobs.init)
         heatmaps/<t>.npy            one per keyframe                (required, or images/)
         images/<t>.png|.jpg         one photo per keyframe                  (optional)
         odometry.txt                TUM, same timestamps                    (optional)
@@ -182,14 +183,14 @@ class FlightFolder:
         root: the folder.
         camera: intrinsics of ``camera.yaml`` (the photos' pixel grid).
         keyframes: ``keyframes.txt`` (timestamps, initial ``world_T_cam``, line numbers).
-        turbine: the initial turbine.
+        turbine: the initial turbine (None without ``turbine.yaml``).
         odometry, gt_world_T_cam, gt_turbine: the optional files, or None.
     """
 
     root: Path
     camera: PinholeCamera
     keyframes: TumTrajectory
-    turbine: TurbineParams
+    turbine: TurbineParams | None
     odometry: SE3 | None = None
     gt_world_T_cam: SE3 | None = None
     gt_turbine: TurbineParams | None = None
@@ -232,14 +233,21 @@ class FlightFolder:
             first = self.heatmap_path(0)
             raise InputError(str(e), path=first if _kind(first) else self.root) from None
 
-    def flight(self, heatmaps: HeatmapStack, camera: PinholeCamera | None = None) -> Flight:
+    def flight(self, heatmaps: HeatmapStack, camera: PinholeCamera | None = None,
+               turbine: TurbineParams | None = None) -> Flight:
         """The :class:`Flight` with these heat-maps, whose pixel grid is ``camera`` (default:
-        ``camera.yaml``'s scaled to the maps' size, :meth:`heatmap_camera`)."""
+        ``camera.yaml``'s scaled to the maps' size, :meth:`heatmap_camera`), and whose
+        initial turbine is ``turbine`` (default: ``turbine.yaml``'s; an InputError naming
+        it if there is none)."""
+        turbine = turbine or self.turbine
+        if turbine is None:
+            raise InputError("required file of a flight folder is missing",
+                             path=self.root / TURBINE_FILE)
         try:
             return Flight(camera=camera or self.heatmap_camera(heatmaps),
                           timestamps=self.timestamps,
                           world_T_cam=self.keyframes.poses, heatmaps=heatmaps,
-                          turbine=self.turbine, odometry=self.odometry,
+                          turbine=turbine, odometry=self.odometry,
                           gt_world_T_cam=self.gt_world_T_cam, gt_turbine=self.gt_turbine)
         except ValueError as e:  # heat-maps given by the caller
             raise InputError(str(e), path=self.root) from e
@@ -247,7 +255,8 @@ class FlightFolder:
 
 def read_flight_folder(folder: StrPath) -> FlightFolder:
     """Read everything of a flight folder but its heat-maps (layout in the module
-    docstring): the camera, keyframes, initial turbine and the optional files.
+    docstring): the camera, keyframes, the initial turbine (if any) and the optional
+    files.
 
     Raises:
         InputError: naming the file (and line or field) of the first problem found.
@@ -261,7 +270,8 @@ def read_flight_folder(folder: StrPath) -> FlightFolder:
     camera = read_camera_yaml(_required(root / CAMERA_FILE))
     kf_path = _required(root / KEYFRAMES_FILE)
     keyframes = read_tum_lines(kf_path)
-    turbine = read_turbine_yaml(_required(root / TURBINE_FILE))
+    turbine = (read_turbine_yaml(root / TURBINE_FILE) if _kind(root / TURBINE_FILE) is not None
+               else None)
     odometry = gt_poses = None
     gt_turbine: TurbineParams | None = None
     if _kind(root / ODOMETRY_FILE) is not None:

@@ -27,10 +27,11 @@ poses and angles convert both ways exactly (:func:`world_T_cam_from_gimbal`,
 :func:`gimbal_from_world_T_cam`).
 
 **Outputs of fit and track** on a flight with ``georef.yaml``
-(:func:`write_georef_outputs`): ``turbine.yaml`` gains ``latitude`` and ``longitude`` of
-the fitted tower base, and ``keyframes_wgs84.csv`` lists each optimised camera as
-``timestamp,latitude,longitude,altitude,yaw,pitch,roll`` in the same gimbal convention, so
-that the angles read back as ``import dji`` reads a photo's.
+(:func:`location_text`, :func:`write_georef_outputs`): ``turbine.yaml`` gains
+``latitude`` and ``longitude`` of the fitted tower base, and ``keyframes_wgs84.csv``
+lists each optimised camera as ``timestamp,latitude,longitude,altitude,yaw,pitch,roll``
+in the same gimbal convention, so that the angles read back as ``import dji`` reads a
+photo's.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
-from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
+from turbinefit.io.atomic import StrPath, write_text_atomic
 from turbinefit.io.flight_folder import GEOREF_FILE
 from turbinefit.io.yaml_files import load_yaml_mapping, parse_number, yaml_float, yaml_str
 from turbinefit.turbine.model import TurbineParams
@@ -252,15 +253,17 @@ def format_wgs84_csv(georef: Georef, timestamps: ArrayLike, world_T_cam: SE3) ->
     return "\n".join(rows) + "\n"
 
 
+def location_text(georef: Georef | None, turbine: TurbineParams) -> str:
+    """What ``turbine.yaml`` of a fit or track gains on a georeferenced flight: the
+    base's :func:`location_lines`; nothing without a georef."""
+    return "" if georef is None else location_lines(georef, turbine)
+
+
 def write_georef_outputs(out_dir: Path, georef: Georef | None, timestamps: ArrayLike,
-                         world_T_cam: SE3, turbine: TurbineParams) -> None:
-    """On a georeferenced flight (``georef`` not None): append the base's latitude and
-    longitude to ``out_dir/turbine.yaml`` (already written) and write
+                         world_T_cam: SE3) -> None:
+    """On a georeferenced flight (``georef`` not None): write
     ``out_dir/keyframes_wgs84.csv``. Nothing without a georef."""
     if georef is None:
         return
-    turbine_file = out_dir / "turbine.yaml"
-    write_text_atomic(turbine_file, read_text(turbine_file) + location_lines(georef, turbine),
-                      fsync=False)
     write_text_atomic(out_dir / WGS84_CSV, format_wgs84_csv(georef, timestamps, world_T_cam),
                       fsync=False)

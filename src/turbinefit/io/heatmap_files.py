@@ -170,6 +170,7 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                          "share a heat-map file", path=keyframes_file or folder)
     cache: dict[bytes, _Header] = {}
     stacked = None
+    to_check: list[tuple[str, int]] = []
     maps: list[NDArray[np.float32]] = []
     if mmap:
         _raise_open_file_limit(len(names) + 64)
@@ -195,20 +196,85 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                 if stacked is None:
                     mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
                     maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
-                    check_heatmap_values(maps[-1], fname)
+                    to_check.append((fname, offset))
                 else:
                     f.seek(offset)
-                    view = memoryview(stacked[k]).cast("B")
-                    done = 0
-                    while done < view.nbytes:
-                        n = f.readinto(view[done:])
-                        if not n:
-                            raise InputError("truncated", path=Path(fname))
-                        done += n
+                    _read_into(f, stacked[k], fname)
                     check_heatmap_values(stacked[k], fname)
             except OSError as e:
                 raise _os_error(e, len(names), fname) from e
-    return HeatmapStack(stacked if stacked is not None else maps)
+    stack = HeatmapStack(stacked if stacked is not None else maps)
+    if to_check:
+        _check_mapped_values(stack, to_check, shape, len(names))
+    return stack
+
+
+def _check_mapped_values(stack: HeatmapStack, files: list[tuple[str, int]],
+                         shape: tuple[int, ...], total: int) -> None:
+    """:func:`check_heatmap_values` of the memory-mapped files ``(name, data offset)`` of
+    ``stack``; the first bad file in keyframe order is the error. With the compiled
+    kernels, one pass over the maps themselves on all threads
+    (:func:`turbinefit._native.first_out_of_range`; the pages it faults in are the ones the
+    solver reads next), the message from :func:`check_heatmap_values` of the file it
+    names; else each file is read into a scratch buffer on a few threads (faster in numpy
+    than two reductions over its memory map)."""
+    from turbinefit import _native
+
+    pointers = stack.pointers()
+    if _native.available() and pointers is not None:
+        lo, hi = -VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE
+        start = 0
+        while start < len(pointers):
+            k = start + _native.first_out_of_range(pointers[start:], math.prod(shape), lo, hi)
+            if k < len(pointers):
+                check_heatmap_values(stack[k], files[k][0])  # raises, naming the value
+            start = k + 1
+        return
+    _read_mapped_values(files, shape, total)
+
+
+def _read_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
+                        total: int) -> None:
+    """The numpy value check of memory-mapped files: each read into a scratch buffer (faster
+    than faulting in every page of its map for two reductions), on a few threads (reading
+    and the reductions release the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+    from threading import local
+
+    scratch = local()
+
+    def check(item: tuple[str, int]) -> None:
+        fname, offset = item
+        buf = getattr(scratch, "buf", None)
+        if buf is None:
+            buf = scratch.buf = np.empty(shape, dtype=np.float32)
+        try:
+            with open_input(fname) as f:  # still a regular file, not waited on if not
+                f.seek(offset)
+                _read_into(f, buf, fname)
+        except OSError as e:
+            raise _os_error(e, total, fname) from e
+        check_heatmap_values(buf, fname)
+
+    workers = min(4, os.cpu_count() or 1, len(files))
+    if workers == 1:
+        for item in files:
+            check(item)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        for _ in pool.map(check, files):  # raises the first error in order
+            pass
+
+
+def _read_into(f: io.RawIOBase, out: NDArray[np.float32], fname: str) -> None:
+    """Fill ``out`` from ``f``'s current position."""
+    view = memoryview(out.data).cast("B")
+    done = 0
+    while done < view.nbytes:
+        n = f.readinto(view[done:])
+        if not n:
+            raise InputError("truncated", path=Path(fname))
+        done += n
 
 
 def _missing(k: int, name: str, keyframes_file: StrPath | None,

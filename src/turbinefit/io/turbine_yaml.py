@@ -152,7 +152,8 @@ def format_turbine_yaml(params: TurbineParams, comment: str | None = None,
 
 
 def write_turbine_yaml(path: StrPath, params: TurbineParams, comment: str | None = None,
-                       std: Mapping[str, float | None] | None = None) -> None:
+                       std: Mapping[str, float | None] | None = None,
+                       extra: str = "") -> None:
     """Write turbine parameters as YAML, atomically.
 
     Args:
@@ -161,8 +162,10 @@ def write_turbine_yaml(path: StrPath, params: TurbineParams, comment: str | None
         comment: optional text written as ``#`` lines at the top.
         std: optional standard deviation of each parameter (a ``std`` block; missing or
             non-finite values are written as ``null``).
+        extra: YAML lines written after the parameters (e.g. the base's latitude and
+            longitude, :func:`turbinefit.io.georef.location_text`).
 
     Raises:
         InputError: naming ``path`` and the key, for a value out of range.
     """
-    write_text_atomic(path, format_turbine_yaml(params, comment, path, std))
+    write_text_atomic(path, format_turbine_yaml(params, comment, path, std) + extra)

@@ -7,6 +7,8 @@
 * :mod:`turbinefit.jobs.evaluate` -- :func:`evaluate_labels`
 * :mod:`turbinefit.jobs.import_dji` -- :func:`import_dji` (DJI photos to a flight folder)
 * :mod:`turbinefit.jobs.import_rosbag` -- :func:`import_rosbag` (a ROS bag to a flight folder)
+* :mod:`turbinefit.jobs.coverage` -- :func:`coverage_folder` (what each keyframe of a fit shows)
+* :mod:`turbinefit.jobs.plan` -- :func:`plan_folder` (the next inspection flight's waypoints)
 
 Shared: :mod:`turbinefit.jobs.sources` (where a flight's heat-maps come from: files or
 photos) and :mod:`turbinefit.jobs.outputs` (the output-folder rules). Each job writes its
@@ -22,6 +24,8 @@ from typing import TYPE_CHECKING
 from turbinefit._lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from turbinefit.jobs.coverage import CoverageReport as CoverageReport
+    from turbinefit.jobs.coverage import coverage_folder as coverage_folder
     from turbinefit.jobs.detect import DetectReport as DetectReport
     from turbinefit.jobs.detect import detect_images as detect_images
     from turbinefit.jobs.evaluate import EvaluateReport as EvaluateReport
@@ -34,6 +38,8 @@ if TYPE_CHECKING:
     from turbinefit.jobs.import_rosbag import RosbagOptions as RosbagOptions
     from turbinefit.jobs.import_rosbag import RosbagSummary as RosbagSummary
     from turbinefit.jobs.import_rosbag import import_rosbag as import_rosbag
+    from turbinefit.jobs.plan import PlanReport as PlanReport
+    from turbinefit.jobs.plan import plan_folder as plan_folder
     from turbinefit.jobs.simulate import simulate_folder as simulate_folder
     from turbinefit.jobs.track import TrackReport as TrackReport
     from turbinefit.jobs.track import TrackSummary as TrackSummary
@@ -47,6 +53,8 @@ _WHERE = {name: f"turbinefit.jobs.{module}" for module, names in {
     "evaluate": ("evaluate_labels", "EvaluateReport"),
     "import_dji": ("import_dji", "DjiImportSummary"),
     "import_rosbag": ("import_rosbag", "RosbagOptions", "RosbagSummary"),
+    "coverage": ("coverage_folder", "CoverageReport"),
+    "plan": ("plan_folder", "PlanReport"),
 }.items() for name in names}
 
 __all__ = sorted(_WHERE)

@@ -16,9 +16,15 @@ from turbinefit import __version__
 from turbinefit.detect import DetectOptions, HeatmapDetector
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import write_text_atomic
+from turbinefit.jobs.outputs import finite_json
 
 if TYPE_CHECKING:
     from turbinefit.io.coco import LabelledImage
+
+
+def _report_json(report: dict) -> str:
+    """The text of a JSON report: strict JSON, undefined (NaN) figures written as null."""
+    return json.dumps(finite_json(report), indent=2, allow_nan=False) + "\n"
 
 
 @dataclass
@@ -106,9 +112,8 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
                   "labels": str(labels), "input_width": info.input_width,
                   "threshold": info.threshold, "tip_threshold": info.tip_threshold,
                   "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
-                  "match_px": match_px,  # NaN (undefined) is written as null
-                  "metrics": {k: v if math.isfinite(v) else None for k, v in summary.items()}}
-        write_text_atomic(out_path, json.dumps(report, indent=2) + "\n")
+                  "match_px": match_px, "metrics": summary}
+        write_text_atomic(out_path, _report_json(report))
     return EvaluateReport(summary, len(items), Path(det.path), info.input_width,
                           info.threshold, info.tip_threshold, out_path, det.tip_shift,
                           det.flip, det.zoom)
@@ -222,21 +227,18 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                             f"inside {p.line_mass_inside:.2f}")
         write_bytes_atomic(sheet_path, encode_png(contact_sheet(tiles, captions)))
 
-    def clean(x: float) -> float | None:  # NaN (undefined) is written as null
-        return x if math.isfinite(x) else None
-
     if out_path is not None:
         report = {"turbinefit_version": __version__, "model": str(det.path),
                   "boxes": None if boxes is None else str(boxes),
                   "masks": None if masks is None else str(masks), "grow": grow,
                   "threshold": det.info.threshold, "tip_threshold": det.info.tip_threshold,
                   "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
-                  "metrics": {c: {k: clean(v) for k, v in m.items()} for c, m in summary.items()},
+                  "metrics": summary,
                   "photos": [{"photo": p.name, "classes": list(p.classes),
-                              "line_mass_inside": clean(p.line_mass_inside),
-                              "skeleton_covered": clean(p.skeleton_covered), "found": p.found,
+                              "line_mass_inside": p.line_mass_inside,
+                              "skeleton_covered": p.skeleton_covered, "found": p.found,
                               "peaks": p.peaks, "peaks_outside": p.peaks_outside}
                              for p in stats.photos]}
-        write_text_atomic(out_path, json.dumps(report, indent=2) + "\n")
+        write_text_atomic(out_path, _report_json(report))
     return RegionReport(summary, len(labels), Path(det.path), det.info.threshold, grow,
                         out_path, sheet_path)

@@ -26,9 +26,11 @@ from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_fit_config
 from turbinefit.io.flight_folder import read_flight_folder
-from turbinefit.io.georef import read_flight_georef, write_georef_outputs
+from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
+from turbinefit.io.mesh import write_turbine_glb
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
+from turbinefit.jobs.init import InitSummary, estimate_turbine
 from turbinefit.jobs.outputs import FIT_OUTPUTS, flight_inputs, plot_error, summary_json
 from turbinefit.jobs.sources import fit_config_for, open_heatmaps, source_photos
 from turbinefit.solver.config import FitConfig
@@ -58,6 +60,8 @@ class FitSummary:
         before, after: accuracy of the initial and fitted estimates (None without ground
             truth).
         timings: seconds spent loading, solving, writing, plotting and in all.
+        init: without ``turbine.yaml``: how the initial turbine was estimated
+            (``turbinefit init``), else None.
     """
 
     flight: str
@@ -70,6 +74,7 @@ class FitSummary:
     after: Accuracy | None = None
     timings: dict[str, float] = field(default_factory=dict)
     defaults: str | None = None
+    init: InitSummary | None = None
 
     def to_dict(self) -> dict[str, Any]:
         r = self.result
@@ -106,6 +111,7 @@ class FitSummary:
         if self.before is not None and self.after is not None:
             out["accuracy"] = {"before": self.before.to_dict(), "after": self.after.to_dict()}
         out["heatmaps"] = self.heatmaps
+        out["turbine_init"] = None if self.init is None else self.init.to_dict()
         if self.defaults is not None:
             out["defaults"] = self.defaults
         return out
@@ -157,10 +163,11 @@ def fit_folder(
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
     Writes ``keyframes.txt`` (optimised ``world_T_cam``, TUM), ``turbine.yaml`` (fitted
-    theta and its standard deviations), ``summary.json`` (:class:`FitSummary`, with the
-    verdict, its reasons and signals), ``config.yaml`` (the resolved options)
-    and, unless ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with
-    ground truth) and ``cost.png``. The outputs are written whatever the verdict
+    theta and its standard deviations), ``turbine.glb`` (the fitted turbine as a 3-D model,
+    :mod:`turbinefit.io.mesh`), ``summary.json`` (:class:`FitSummary`, with the verdict,
+    its reasons and signals), ``config.yaml`` (the resolved options) and, unless
+    ``plots=False``, ``scene.png``, ``reprojections.png``, ``errors.png`` (with ground truth)
+    and ``cost.png``. The outputs are written whatever the verdict
     (``report.result.verdict``): a failed fit is kept for inspection.
 
     ``out_dir`` is checked before anything is read (:mod:`turbinefit.jobs.outputs`): not
@@ -172,6 +179,9 @@ def fit_folder(
     ``flight_dir/images/`` (ONNX ``model`` or the shipped one, with ``detect_options``)
     when ``from_images`` is True, or when it is None and the flight has photos but no
     ``heatmaps/`` (:func:`turbinefit.jobs.sources.open_heatmaps`).
+
+    Without ``turbine.yaml`` the initial turbine is estimated from the heat-maps first
+    (:func:`turbinefit.jobs.init.estimate_turbine`; ``summary.init``).
 
     Options: ``config`` (None = the defaults for the kind of heat-maps,
     :func:`turbinefit.jobs.sources.fit_config_for`), with the FitConfig fields of
@@ -187,7 +197,12 @@ def fit_folder(
     georef = read_flight_georef(flight_dir)
     source = open_heatmaps(folder, from_images, model, detect_options)
     cfg = fit_config_for(source, config, options)
-    flight = folder.flight(source.stack(progress=detect_progress), source.camera)
+    stack = source.stack(progress=detect_progress)
+    init = None
+    if folder.turbine is None:  # no turbine.yaml: estimate it from the images
+        init = estimate_turbine(stack, source.camera, folder.keyframes.poses,
+                                where=flight_dir, gt_turbine=folder.gt_turbine)
+    flight = folder.flight(stack, source.camera, None if init is None else init.turbine)
     timings["load"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
@@ -203,7 +218,8 @@ def fit_folder(
     summary = FitSummary(str(flight_dir), flight.num_keyframes,
                          (flight.camera.width, flight.camera.height), source.description,
                          result, flight.turbine, timings=timings,
-                         defaults=None if config is not None else source.defaults_name)
+                         defaults=None if config is not None else source.defaults_name,
+                         init=init)
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
         with np.errstate(over="ignore", invalid="ignore"):  # errors of absurd inputs: inf
             summary.before = accuracy(flight.world_T_cam, flight.turbine,
@@ -215,8 +231,10 @@ def fit_folder(
         write_tum(tmp / "keyframes.txt", flight.timestamps, result.world_T_cam)
         write_turbine_yaml(tmp / "turbine.yaml", result.turbine, comment=FITTED_TURBINE_COMMENT,
                            std=None if result.signals is None
-                           else result.signals.theta_std_dict())
-        write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam, result.turbine)
+                           else result.signals.theta_std_dict(),
+                           extra=location_text(georef, result.turbine))
+        write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam)
+        write_turbine_glb(tmp / "turbine.glb", result.turbine, result.config.geometry)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()

@@ -25,9 +25,10 @@ What each photo's metadata becomes (:mod:`turbinefit.io.dji` reads it,
 * **Turbine**: ``turbine_yaml`` is validated and copied in; when it gives ``latitude`` and
   ``longitude`` of the base (a georeferenced fit's ``turbine.yaml``), its base is moved to
   that position in this flight's frame. Without it the folder has no ``turbine.yaml``
-  (``fit`` then asks for one). A turbine position alone (``turbine_location``) is refused
-  with its position in this flight's frame: making the rest of ``turbine.yaml`` from the
-  photos is turbine initialisation, not built yet.
+  (``fit`` and ``track`` then estimate one). A turbine position alone
+  (``turbine_location_deg``) makes ``turbine.yaml`` from the photos
+  (:func:`turbinefit.jobs.init.init_folder` near that position, the photos detected by
+  the CNN); a parameter they do not determine is refused and nothing is written.
 
 Bad input (no photos, a non-JPEG, a photo without time, GPS or gimbal metadata, two
 photos at one time, photos of two cameras, a bad turbine file) is an
@@ -134,8 +135,8 @@ def import_dji(
         origin: (latitude [deg], longitude [deg], altitude [m]) of the ENU origin; None =
             the first photo's position at ground level.
         turbine_yaml: a turbine file to copy in as ``turbine.yaml``.
-        turbine_location_deg: (latitude, longitude) of the turbine's base: refused (with
-            its position in the flight's frame) until turbine initialisation exists.
+        turbine_location_deg: (latitude, longitude) of the turbine's base: turbine.yaml
+            is estimated from the photos near it (``turbinefit init --near``).
 
     Raises:
         InputError: naming the file of the first problem; nothing is written then.
@@ -165,8 +166,8 @@ def import_dji(
                            for p in photos])
     world_T_cam = world_T_cam_from_gimbal(georef, *meta.T)
     turbine_text, turbine_note = _turbine(turbine_path, georef)
-    if turbine_location_deg is not None:
-        raise _no_initialisation(georef, *turbine_location_deg)
+    near_xy = (None if turbine_location_deg is None
+               else _flight_position(georef, *turbine_location_deg))
 
     texts = {
         CAMERA_FILE: format_camera_yaml(camera, name=photos[0].camera_name),
@@ -182,6 +183,8 @@ def import_dji(
         for name, text in texts.items():
             write_text_atomic(tmp / name, text, fsync=False)
         how = link_photos([p.path for p in photos], timestamps, tmp / IMAGE_DIR, out / IMAGE_DIR)
+        if near_xy is not None:  # turbine.yaml from the photos, near that position
+            turbine_note = _initialise(tmp, out, near_xy, georef)
     t2 = time.perf_counter()
     return DjiImportSummary(
         str(out), len(photos), photos[0].camera_name, (camera.width, camera.height),
@@ -330,19 +333,34 @@ def _turbine(path: Path | None, georef: Georef) -> tuple[str | None, str | None]
             f"from {path}, base at its latitude/longitude: ({float(x):.2f}, {float(y):.2f}) m")
 
 
-def _no_initialisation(georef: Georef, latitude: float, longitude: float) -> InputError:
-    """The error for a turbine given by its position only."""
+def _flight_position(georef: Georef, latitude: float, longitude: float
+                     ) -> tuple[float, float]:
+    """A turbine given by its position (``--turbine``), in the flight's frame."""
     try:
         Georef(latitude, longitude, georef.altitude)
     except ValueError as e:
-        return InputError(str(e), field="--turbine")
+        raise InputError(str(e), field="--turbine") from None
     x, y, _ = georef.enu(latitude, longitude, georef.altitude)
-    return InputError(
-        f"the turbine base is at x = {float(x):.2f} m, y = {float(y):.2f} m in this "
-        "flight's frame, but making turbine.yaml from a position needs turbine "
-        "initialisation (turbinefit init), not built yet: write a turbine.yaml with "
-        "base_x, base_y there and the turbine's dimensions, and give it with --turbine-yaml",
-        field="--turbine")
+    return float(x), float(y)
+
+
+def _initialise(tmp: Path, out: Path, near_xy: tuple[float, float], georef: Georef) -> str:
+    """Write ``tmp/turbine.yaml`` estimated from the photos (``turbinefit init --near``
+    the turbine's position; the CNN detects every photo); what it is, in words. A parameter
+    the photos do not determine is an InputError naming ``out`` (nothing is written)."""
+    from turbinefit.jobs.init import init_folder
+    from turbinefit.solver.init import TurbinePrior
+
+    try:
+        report = init_folder(tmp, tmp / TURBINE_FILE, TurbinePrior(near_xy=near_xy),
+                             from_images=True)
+    except InputError as e:
+        raise InputError(str(e).replace(str(tmp), str(out)) + " (or give --turbine-yaml)",
+                         field="--turbine") from None
+    with open(tmp / TURBINE_FILE, "a", encoding="utf-8") as f:
+        f.write(location_lines(georef, report.summary.turbine))
+    return (f"estimated from the photos near ({near_xy[0]:.2f}, {near_xy[1]:.2f}) m "
+            f"(turbinefit init, {report.summary.keyframes_seen} photos showing it)")
 
 
 def link_photos(sources: list[Path], timestamps: np.ndarray, tmp_dir: Path,

@@ -132,10 +132,10 @@ def summary_json(summary: Summary) -> str:
 
 
 FIT_OUTPUTS = OutputKind("fit", frozenset({
-    "keyframes.txt", "turbine.yaml", "config.yaml", "summary.json", "scene.png",
+    "keyframes.txt", "turbine.yaml", "turbine.glb", "config.yaml", "summary.json", "scene.png",
     "reprojections.png", "errors.png", "cost.png", "keyframes_wgs84.csv"}))
 TRACK_OUTPUTS = OutputKind("track", frozenset({
-    "causal.txt", "keyframes.txt", "turbine.yaml", "latency.csv", "latency.png", "config.yaml",
-    "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv"}))
+    "causal.txt", "keyframes.txt", "turbine.yaml", "turbine.glb", "latency.csv", "latency.png",
+    "config.yaml", "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv"}))
 #: ``detect`` writes ``<stem>.npy`` heat-maps and a ``<stem>.png`` overlay per photo.
 DETECT_OUTPUTS = OutputKind("detect", None, (".npy", ".png"))

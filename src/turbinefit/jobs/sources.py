@@ -65,10 +65,13 @@ class HeatmapSource(Protocol):
             ``benchmarks/bench_defaults.py`` measures them): what ``fit`` and ``track``
             use when no ``--config`` or ``--preset`` is given.
         defaults_name: what those defaults are for, in a few words.
+        detects: whether :meth:`keyframe` runs the CNN on a photo (its time is part of
+            each keyframe's latency) rather than reading a file.
     """
 
     camera: PinholeCamera
     description: str
+    detects: bool
     fit_defaults: Mapping[str, Any]
     defaults_name: str
 
@@ -94,6 +97,7 @@ class FileHeatmaps:
     (:meth:`~turbinefit.io.flight_folder.FlightFolder.heatmap_camera`)."""
 
     description = "heatmaps/"
+    detects = False
     fit_defaults = FILE_FIT_DEFAULTS
     defaults_name = f"heat-map files ({_describe(FILE_FIT_DEFAULTS)})"
 
@@ -155,6 +159,7 @@ class PhotoHeatmaps:
         self.options = options or DetectOptions()
         self.threads = threads
         self.description = f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+        self.detects = True
         self.fit_defaults = PHOTO_FIT_DEFAULTS
         self.defaults_name = f"heat-maps detected from photos ({_describe(PHOTO_FIT_DEFAULTS)})"
         self._detector: HeatmapDetector | None = None

@@ -28,15 +28,17 @@ from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_tracker_config, tracker_config_dict
 from turbinefit.io.flight_folder import FlightFolder, read_flight_folder
-from turbinefit.io.georef import read_flight_georef, write_georef_outputs
+from turbinefit.io.georef import location_text, read_flight_georef, write_georef_outputs
+from turbinefit.io.mesh import write_turbine_glb
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
+from turbinefit.jobs.init import InitSummary, estimate_turbine
 from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
-from turbinefit.jobs.sources import PhotoHeatmaps, fit_config_for, open_heatmaps
+from turbinefit.jobs.sources import fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
 from turbinefit.solver.verdict import ImageEvidence, Signals, image_evidence, judge, measure
-from turbinefit.turbine.model import TurbineGeometry, TurbineParams
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_point_error
 
 if TYPE_CHECKING:
     from turbinefit.detect import DetectOptions
@@ -127,6 +129,7 @@ class TrackSummary:
     verdict: str = "ok"
     reasons: list[str] = dataclasses.field(default_factory=list)
     signals: Signals | None = None
+    init: InitSummary | None = None
 
     def to_dict(self) -> dict[str, Any]:
         turbine: dict[str, Any] = {"initial": self.initial_turbine.to_dict(),
@@ -147,6 +150,7 @@ class TrackSummary:
             "verdict": self.verdict,
             "reasons": list(self.reasons),
             "signals": None if self.signals is None else self.signals.to_dict(),
+            "turbine_init": None if self.init is None else self.init.to_dict(),
         }
         if self.defaults is not None:
             out["defaults"] = self.defaults
@@ -209,7 +213,8 @@ def track_folder(
 
     Writes into ``out_dir`` (atomically, checked as :func:`~turbinefit.jobs.fit.fit_folder`
     checks it): ``causal.txt`` (TUM: each keyframe's estimate when it arrived),
-    ``keyframes.txt`` and ``turbine.yaml`` (the final estimates, as ``fit`` writes them),
+    ``keyframes.txt``, ``turbine.yaml`` and ``turbine.glb`` (the final estimates, as ``fit``
+    writes them),
     ``latency.csv`` (``timestamp,latency_ms``), ``config.yaml``, ``summary.json``
     (:class:`TrackSummary`) and, unless ``plots=False``, ``latency.png``, ``errors.png``
     (with ground truth) and ``scene.png``.
@@ -240,15 +245,21 @@ def track_folder(
                                   **(tracker_options or {}))
     except (TypeError, ValueError) as exc:
         raise InputError(str(exc), field="track options") from None
-    tracker = Tracker(source.camera, folder.turbine, cfg)
     n = folder.num_keyframes
     poses = folder.keyframes.poses
+    buffered: list[np.ndarray] = []
+    init = None
+    initial_turbine = folder.turbine
+    if initial_turbine is None:  # no turbine.yaml: from the first keyframes showing it
+        init, buffered = _initialise(folder, source, flight_dir)
+        initial_turbine = init.turbine
+    tracker = Tracker(source.camera, initial_turbine, cfg)
     odometry = folder.odometry  # its steps are the pairwise measurements, if present
     latency = np.empty(n)
     image: list[ImageEvidence] = []
     for k in range(n):
         t0 = time.perf_counter()
-        maps = source.keyframe(k)
+        maps = buffered[k] if k < len(buffered) else source.keyframe(k)
         try:
             est = tracker.update(float(folder.timestamps[k]), poses[k], maps,
                                  odometry=None if odometry is None else odometry[k])
@@ -268,11 +279,11 @@ def track_folder(
     summary = TrackSummary(
         str(flight_dir), n, (source.camera.width, source.camera.height),
         (f"{source.description} (as each keyframe arrives; its latency includes detection)"
-         if isinstance(source, PhotoHeatmaps) else source.description),
+         if source.detects else source.description),
         cfg, LatencyStats.of(latency, cfg.window),
         float(np.mean([e.iterations for e in tracker.estimates])),
-        tracker.theta_prior_active, folder.turbine, turbine,
-        defaults=None if config is not None else source.defaults_name)
+        tracker.theta_prior_active, initial_turbine, turbine,
+        defaults=None if config is not None else source.defaults_name, init=init)
     if last.theta_covariance is not None:
         summary.final_sigma = dict(zip(TurbineParams.NAMES,
                                        np.sqrt(np.diag(last.theta_covariance)).tolist(),
@@ -286,7 +297,7 @@ def track_folder(
     geometry = cfg.fit.geometry
     gt_poses, gt_turbine = folder.gt_world_T_cam, folder.gt_turbine
     if gt_poses is not None and gt_turbine is not None:
-        summary.initial = accuracy(poses, folder.turbine, gt_poses, gt_turbine, geometry)
+        summary.initial = accuracy(poses, initial_turbine, gt_poses, gt_turbine, geometry)
         summary.causal = accuracy(causal_poses, turbine, gt_poses, gt_turbine, geometry)
         summary.final = accuracy(final_poses, turbine, gt_poses, gt_turbine, geometry)
         summary.final_without_back_substitution = accuracy(
@@ -297,8 +308,9 @@ def track_folder(
                   comment="turbinefit track: each keyframe's estimate when it arrived")
         write_tum(tmp / "keyframes.txt", folder.timestamps, final_poses)
         write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT,
-                           std=summary.final_sigma)
-        write_georef_outputs(tmp, georef, folder.timestamps, final_poses, turbine)
+                           std=summary.final_sigma, extra=location_text(georef, turbine))
+        write_georef_outputs(tmp, georef, folder.timestamps, final_poses)
+        write_turbine_glb(tmp / "turbine.glb", turbine, geometry)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))
         write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)
@@ -306,22 +318,62 @@ def track_folder(
         write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
         if plots:
             try:
-                _track_plots(tmp, folder, final_poses, causal_poses, turbine, latency, geometry)
+                _track_plots(tmp, folder, final_poses, causal_poses, initial_turbine, turbine,
+                             latency, geometry)
             except OSError as exc:
                 raise plot_error(exc, out) from exc
     return TrackReport(out, list(tracker.estimates), final_poses, turbine, latency, summary)
 
 
 def _track_plots(out: Path, folder: FlightFolder, final_poses: SE3, causal_poses: SE3,
-                 turbine: TurbineParams, latency: np.ndarray, geometry: TurbineGeometry) -> None:
+                 initial_turbine: TurbineParams, turbine: TurbineParams, latency: np.ndarray,
+                 geometry: TurbineGeometry) -> None:
     from turbinefit import plots
 
     initial = folder.keyframes.poses
     plots.plot_latency(out / "latency.png", latency)
     plots.plot_scene(
         out / "scene.png", initial_poses=initial, optimised_poses=final_poses,
-        initial_turbine=folder.turbine, optimised_turbine=turbine,
+        initial_turbine=initial_turbine, optimised_turbine=turbine,
         gt_poses=folder.gt_world_T_cam, gt_turbine=folder.gt_turbine, geometry=geometry)
     if folder.gt_world_T_cam is not None:
         plots.plot_pose_errors(out / "errors.png", folder.timestamps, folder.gt_world_T_cam,
                                initial=initial, optimised=final_poses, causal=causal_poses)
+
+
+#: The tracker from nothing tries ``init`` every this many keyframes ...
+INIT_EVERY = 10
+#: ... and starts when two successive estimates agree to within this [m] (mean distance
+#: of the model points), or at this many keyframes with the last estimate.
+INIT_AGREE_M = 1.5
+INIT_MAX_KEYFRAMES = 100
+
+
+def _initialise(folder: FlightFolder, source: Any, flight_dir: Path
+                ) -> tuple[InitSummary, list[np.ndarray]]:
+    """The initial turbine of a flight without ``turbine.yaml``, from its first keyframes:
+    ``init`` on the first 10, 20, ... keyframes until two successive estimates agree
+    (:data:`INIT_AGREE_M`); returns it and the keyframes' maps read so far (the tracker
+    then replays them)."""
+    n = folder.num_keyframes
+    poses = folder.keyframes.poses
+    maps: list[np.ndarray] = []
+    last: InitSummary | None = None
+    while len(maps) < n:
+        maps.append(np.asarray(source.keyframe(len(maps))))
+        k = len(maps)
+        if k % INIT_EVERY and k < n:
+            continue
+        try:
+            est = estimate_turbine(HeatmapStack(maps), source.camera, poses[:k],
+                                   where=flight_dir, gt_turbine=folder.gt_turbine)
+        except InputError:
+            if k == n:
+                raise
+            continue
+        if ((last is not None and model_point_error(est.turbine, last.turbine) < INIT_AGREE_M)
+                or k >= min(n, INIT_MAX_KEYFRAMES)):
+            return est, maps
+        last = est
+    assert last is not None  # the last attempt (k == n) returned or raised
+    return last, maps

@@ -4,6 +4,7 @@ its path.
 * :mod:`turbinefit.plots.flight` -- one flight: scene, reprojections, errors, cost history,
   latency (what ``fit`` and ``track`` write);
 * :mod:`turbinefit.plots.studies` -- the Monte Carlo studies' figures;
+* :mod:`turbinefit.plots.inspection` -- coverage of blades and tower (imported on use);
 * :mod:`turbinefit.plots.common` -- colours, figure creation, atomic PNG saving.
 """
 

@@ -115,17 +115,23 @@ class RenderConfig:
         noise: imperfections (default: none).
         piece_px: lines are drawn as straight pieces at most this long [px] (each with its
             own bounding box, for speed; pieces of a straight line join seamlessly).
+        noise_block: the pixel noise is drawn once per block of ``noise_block`` x
+            ``noise_block`` pixels (maps k times the reference size: k, so that their
+            noise is that of the reference maps at k times the resolution).
     """
 
     sigma_px: float = 2.0
     noise: HeatmapNoise = field(default_factory=HeatmapNoise)
     piece_px: float = 24.0
+    noise_block: int = 1
 
     def __post_init__(self) -> None:
         if not (self.sigma_px > 0 and math.isfinite(self.sigma_px)):
             raise ValueError(f"sigma_px must be positive, got {self.sigma_px}")
         if not self.piece_px > 0:
             raise ValueError(f"piece_px must be positive, got {self.piece_px}")
+        if not (isinstance(self.noise_block, int) and self.noise_block >= 1):
+            raise ValueError(f"noise_block must be a whole number >= 1, got {self.noise_block}")
 
 
 # ---- projection -------------------------------------------------------------------------
@@ -282,8 +288,13 @@ def _render_into(out: F32Array, painter: _Painter, world_R_cam: FloatArray,
     if noise.spurious_rate > 0:
         painter.spurious(out, rng)
     if noise.pixel_sigma > 0:
-        n = _NORMAL_TABLE[rng.integers(0, _NORMAL_TABLE.size, out.shape, dtype=np.uint16)]
+        b = painter.cfg.noise_block
+        c, h, w = out.shape
+        shape = (c, -(-h // b), -(-w // b)) if b > 1 else out.shape
+        n = _NORMAL_TABLE[rng.integers(0, _NORMAL_TABLE.size, shape, dtype=np.uint16)]
         n *= np.float32(noise.pixel_sigma)
+        if b > 1:  # one value per block of b x b pixels
+            n = np.repeat(np.repeat(n, b, axis=1), b, axis=2)[:, :h, :w]
         out += n
         np.clip(out, 0.0, 1.0, out=out)
 

@@ -72,7 +72,8 @@ class SimConfig:
         geometry: shape details beyond the paper's model, used for the ground truth
             (default: the paper's model).
         heatmap_sigma: blob / ridge standard deviation [px] at 320 px width; scaled with
-            the heat-maps' width ``/ 320``.
+            the heat-maps' width ``/ 320`` (as are the false streaks' lengths of
+            ``heatmap_noise``, and the block its pixel noise is drawn per).
         heatmap_noise: heat-map imperfections.
         drift_pos_m: RMS position drift of the initial poses at the last keyframe [m].
         drift_rot_deg: RMS orientation drift of the initial poses at the last keyframe
@@ -158,9 +159,17 @@ class SimConfig:
         return cam.scaled_to(*self.heatmap_size)
 
     def render_config(self) -> RenderConfig:
-        """Heat-map rendering settings (sigma scaled to the heat-maps' width)."""
-        return RenderConfig(sigma_px=self.heatmap_sigma * self.heatmap_camera().width / 320.0,
-                            noise=self.heatmap_noise)
+        """Heat-map rendering settings: blob and ridge sigma and the false streaks' lengths
+        scaled to the heat-maps' width (``/ 320``), and above 320 px the pixel noise drawn
+        per block of that many pixels, so that maps of one view at any size are the same
+        picture at a different resolution."""
+        k = self.heatmap_camera().width / 320.0
+        noise = self.heatmap_noise
+        if k != 1.0:
+            lo, hi = noise.spurious_length_px
+            noise = replace(noise, spurious_length_px=(lo * k, hi * k))
+        return RenderConfig(sigma_px=self.heatmap_sigma * k, noise=noise,
+                            noise_block=max(1, round(k)))
 
 
 #: Named scenarios.
@@ -203,8 +212,10 @@ def _place_neighbour(primary: TurbineParams, path_xy: np.ndarray,
     return other
 
 
-def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Flight:
-    """Simulate an inspection flight.
+def simulate_flight(cfg: SimConfig | None = None, progress: bool = False,
+                    out: np.ndarray | None = None) -> Flight:
+    """Simulate an inspection flight; ``out``: a preallocated float32 array (N, 7, h, w)
+    for the heat-maps (e.g. a memory map: flights of large maps need not fit in memory).
 
     Returns:
         A :class:`~turbinefit.flight.Flight` whose ``world_T_cam`` are the drifted poses
@@ -232,7 +243,8 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False) -> Fli
 
     camera = cfg.heatmap_camera()
     maps = render_flight(camera, gt_poses, gt_turbine.to_vector(), cfg.geometry,
-                         cfg.render_config(), rng["heatmaps"], distractors, progress=progress)
+                         cfg.render_config(), rng["heatmaps"], distractors, progress=progress,
+                         out=out)
     init_poses = drift_poses(gt_poses, rng["drift"], cfg.drift_pos_m, cfg.drift_rot_deg)
     odometry = None
     if cfg.odometry == "vio":

@@ -14,10 +14,28 @@ UnaryKind = Literal["interp", "corr", "none"]
 Gauge = Literal["first", "gps"]
 PairFrame = Literal["auto", "measured", "estimated"]
 
+#: Width [px] of the heat-maps the pixel settings of :class:`FitConfig` are stated for
+#: (``[px of maps 320 px wide]``; the net's and the simulator's maps).
+REFERENCE_WIDTH = 320
+#: The settings in pixels at :data:`REFERENCE_WIDTH`, which follow the maps' scale
+#: (:attr:`FitConfig.pixel_scale`); ``robust_scale`` is in units of the whitened residual,
+#: so it follows ``pixel_sigma``.
+PIXEL_FIELDS = ("pixel_sigma", "corr_radius", "line_search", "border_margin",
+                "warmup_pixel_sigma")
+
+
+def pixel_scale_for(width: int) -> float:
+    """The automatic :attr:`FitConfig.pixel_scale` of heat-maps ``width`` px wide: their
+    width over :data:`REFERENCE_WIDTH`, at least 1."""
+    return max(1.0, width / REFERENCE_WIDTH)
+
 
 @dataclass(frozen=True)
 class FitConfig:
-    """How a flight is fitted. Units: pixels [px], metres [m], degrees [deg] as named."""
+    """How a flight is fitted. Units: metres [m], degrees [deg] as named; pixel settings in
+    [px of maps 320 px wide], multiplied by ``pixel_scale`` into the maps' pixels
+    (maps four times as wide are searched over the same part of the view, in the same
+    angle)."""
 
     mode: Mode = "joint"
     """joint: poses and turbine; pose: poses only (turbine fixed); turbine: turbine only."""
@@ -39,8 +57,8 @@ class FitConfig:
     lambda_pair: float = 1.0
     """Weight lambda of the pairwise (relative-pose) term."""
     pixel_sigma: float = 0.5
-    """Correspondence noise [px]: correspondence residuals are divided by it (sub-pixel
-    peaks of sharp heat-maps; raise it for a coarse CNN)."""
+    """Correspondence noise [px of maps 320 px wide]: correspondence residuals are divided
+    by it (sub-pixel peaks of sharp heat-maps; raise it for a coarse CNN)."""
     pair_sigma_t: float = 0.1
     """Default information matrix: std. dev. of a relative translation [m] per axis."""
     pair_sigma_r_deg: float = 0.1
@@ -62,9 +80,11 @@ class FitConfig:
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
     corr_radius: float = 20.0
-    """Radius of the circular window searched for point correspondences [px]."""
+    """Radius of the circular window searched for point correspondences [px of maps 320 px
+    wide]."""
     line_search: float = 20.0
-    """Half-length of the perpendicular search for line correspondences [px]."""
+    """Half-length of the perpendicular search for line correspondences [px of maps 320 px
+    wide]."""
     line_residual: Literal["point", "normal"] = "point"
     """Residual of a line correspondence (lines=corr): point, the 2-D distance to the
     point found by the perpendicular search (the paper's E_unary(1), which also resists
@@ -75,7 +95,8 @@ class FitConfig:
     """Floor eps of the interp cost -log((G + eps) / (1 + eps)): heat-map values below it
     count as background (robustness to low-level CNN noise); >= 1e-4."""
     border_margin: float = 8.0
-    """Width over which heat-map evidence fades out at the image border [px]."""
+    """Width over which heat-map evidence fades out at the image border [px of maps 320 px
+    wide]."""
     robust: Literal["none", "huber", "cauchy"] = "huber"
     """Robust loss on the image terms."""
     robust_scale: float = 2.0
@@ -101,7 +122,8 @@ class FitConfig:
     warmup_iterations: int = 4
     """Levenberg-Marquardt iterations per warm-up round."""
     warmup_pixel_sigma: float = 2.0
-    """Correspondence noise of the warm-up stages [px] (their Huber loss bends at 2x it)."""
+    """Correspondence noise of the warm-up stages [px of maps 320 px wide] (their Huber loss
+    bends at 2x it)."""
     warmup_function_tolerance: float = 1e-2
     """A warm-up round stops at the first accepted step that lowers its cost by less than
     this fraction (the warm-up only has to reach the configured cost's basin: measured on
@@ -122,6 +144,11 @@ class FitConfig:
     """Stop when the step is below this fraction of the state's norm."""
     geometry: TurbineGeometry = field(default_factory=TurbineGeometry)
     """Fixed shape details (shaft tilt, blade cone, hub offset); zeros = the paper's model."""
+    pixel_scale: float | None = None
+    """Factor from the settings in [px of maps 320 px wide] to the heat-maps' own pixels
+    (the searches' sample spacing grows with it too); unset (auto): the maps' width / 320,
+    at least 1 (maps up to 320 px wide use the values as written). fit, FitProblem and
+    the Tracker resolve it and record the factor used (config.yaml)."""
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -172,12 +199,28 @@ class FitConfig:
             raise bad("heatmap_floor", "must be in [1e-4, 1)")
         if not 0 < self.corr_threshold < 1:
             raise bad("corr_threshold", "must be in (0, 1)")
+        if self.pixel_scale is not None and not (
+                isinstance(self.pixel_scale, int | float) and not isinstance(self.pixel_scale, bool)
+                and math.isfinite(self.pixel_scale) and self.pixel_scale > 0):
+            raise bad("pixel_scale", "must be a positive number or unset (auto)")
         if self.pair_information is not None:
             if len(self.pair_information) != 36:
                 raise bad("pair_information", "needs 36 values (a 6x6 matrix)")
             if not all(isinstance(x, int | float) and not isinstance(x, bool)
                        and math.isfinite(x) for x in self.pair_information):
                 raise bad("pair_information", "must be 36 finite numbers")
+
+    @property
+    def scale(self) -> float:
+        """The resolved ``pixel_scale`` (1 while it is unset: see
+        :func:`resolve_pixel_scale`)."""
+        return 1.0 if self.pixel_scale is None else float(self.pixel_scale)
+
+    def px(self, name: str) -> float:
+        """The setting ``name`` (one of :data:`PIXEL_FIELDS`) in the heat-maps' pixels."""
+        if name not in PIXEL_FIELDS:
+            raise ValueError(f"{name} is not a pixel setting")
+        return float(getattr(self, name)) * self.scale
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -210,6 +253,14 @@ def resolve_pair_frame(config: FitConfig, has_odometry: bool) -> FitConfig:
     if config.pair_frame != "auto":
         return config
     return dataclasses.replace(config, pair_frame="estimated" if has_odometry else "measured")
+
+
+def resolve_pixel_scale(config: FitConfig, width: int) -> FitConfig:
+    """``config`` with an unset ``pixel_scale`` resolved for heat-maps ``width`` px wide
+    (:func:`pixel_scale_for`); a set one is kept."""
+    if config.pixel_scale is not None:
+        return config
+    return dataclasses.replace(config, pixel_scale=pixel_scale_for(width))
 
 
 def pair_frame_line(requested: FitConfig, used: FitConfig) -> str:

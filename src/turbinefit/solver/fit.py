@@ -1,10 +1,10 @@
 """Fit a flight: stages of correspondence rounds around Levenberg-Marquardt.
 
-1. *align* (warm-up): point and line correspondences (20 px search windows, a Huber loss,
-   line residuals along the search normal so that the model may slide along its lines) on
-   a pose graph stiffened ``warmup_stiffness`` times: the trajectory moves nearly rigidly,
-   with the turbine, onto the heat-maps, which removes most of the smooth GPS/IMU drift
-   and the turbine's error.
+1. *align* (warm-up): point and line correspondences (search windows of 20 px at 320 px
+   wide maps, a Huber loss, line residuals along the search normal so that the model may
+   slide along its lines) on a pose graph stiffened ``warmup_stiffness`` times: the
+   trajectory moves nearly rigidly, with the turbine, onto the heat-maps, which removes
+   most of the smooth GPS/IMU drift and the turbine's error.
 2. *match* (warm-up): the same correspondences on the normal pose graph: each keyframe
    comes within a few pixels of its heat-maps.
 3. *refine*: the configured cost (by default the paper's best: point correspondences and
@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
-from turbinefit.solver.config import FitConfig, resolve_pair_frame
+from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.lm import IterationRecord
 from turbinefit.solver.problem import Correspondences, FitProblem
 from turbinefit.solver.rounds import initial_correspondences, run_rounds
@@ -66,7 +66,8 @@ class FitResult:
         history: every LM iteration.
         time_s: wall time of the solve [s].
         num_residuals: scalar residuals in the final problem.
-        config: the configuration used (``pair_frame`` resolved: never ``auto``).
+        config: the configuration used (``pair_frame`` resolved: never ``auto``;
+            ``pixel_scale`` resolved from the heat-maps' width).
         theta_covariance: (7, 7) covariance of theta (metres, radians) from the final
             normal equations; None with the turbine fixed or singular information.
         signals, verdict, reasons: how far to trust the result
@@ -150,13 +151,17 @@ def fit(
         flight: the flight (initial poses and turbine are the starting point).
         config: options (default :class:`FitConfig`: joint, points=corr, lines=interp);
             ``pair_frame="auto"`` becomes estimated if ``flight.odometry`` is given,
-            measured otherwise, and the result's ``config`` records which.
+            measured otherwise, an unset ``pixel_scale`` the heat-maps' width / 320 (at
+            least 1), and the result's ``config`` records which.
         keyframes: subset of keyframe indices to use (default: all).
         initial_poses, initial_turbine: override the starting point.
         callback: called after every LM iteration (e.g. for a progress bar).
     """
-    # auto resolved once, here: every stage and the result use the frame of the flight
-    cfg = resolve_pair_frame(config or FitConfig(), flight.odometry is not None)
+    # auto resolved once, here: every stage and the result use the frame of the flight and
+    # the pixel scale of its heat-maps
+    cfg = resolve_pixel_scale(
+        resolve_pair_frame(config or FitConfig(), flight.odometry is not None),
+        flight.camera.width)
     t0 = time.perf_counter()
     problem = FitProblem(flight, cfg, keyframes)
     kf = problem.keyframes

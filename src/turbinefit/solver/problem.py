@@ -48,7 +48,7 @@ from turbinefit.costs.robust import RobustLoss
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.solver.config import FitConfig, resolve_pair_frame
+from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.marginal import GaussianPrior
 from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
 
@@ -177,8 +177,10 @@ class FitProblem:
         data: the keyframes (camera, heat-maps, initial poses, measurements).
         config: the fit options; ``pair_frame="auto"`` is resolved from ``data``
             (estimated with odometry, measured without,
-            :func:`~turbinefit.solver.config.resolve_pair_frame`) and :attr:`config` holds
-            the resolved options.
+            :func:`~turbinefit.solver.config.resolve_pair_frame`), an unset
+            ``pixel_scale`` from the heat-maps' width
+            (:func:`~turbinefit.solver.config.resolve_pixel_scale`), and :attr:`config`
+            holds the resolved options.
         keyframes: indices into the flight's keyframes to use (default: all), in time order;
             consecutive ones are linked by pairwise edges.
         fixed: (len(keyframes),) poses held at their current values (default: from the
@@ -197,7 +199,10 @@ class FitProblem:
                  prior: GaussianPrior | None = None,
                  evidence: NDArray[np.bool_] | None = None) -> None:
         self.data = data
-        self.config = config = resolve_pair_frame(config, data.odometry is not None)
+        self.config = config = resolve_pixel_scale(
+            resolve_pair_frame(config, data.odometry is not None), data.camera.width)
+        #: sample spacing of the correspondence searches [px of the maps]
+        self.search_step = max(1, math.floor(config.scale))
         self.keyframes = (np.arange(data.num_keyframes) if keyframes is None
                           else np.asarray(keyframes, dtype=np.int64))
         self.num_keyframes = int(self.keyframes.size)
@@ -291,7 +296,7 @@ class FitProblem:
             pr = project_points(cam, poses, P, None, with_jacobian=False)
             out.point_target, out.point_found = find_point_correspondences(
                 self.data.heatmaps, self.keyframes, POINT_CHANNELS, pr.uv, pr.inside,
-                cfg.corr_radius, cfg.corr_threshold)
+                cfg.px("corr_radius"), cfg.corr_threshold, self.search_step)
         if cfg.lines == "corr":
             pr = project_points(cam, poses, S, None, with_jacobian=False)
             pr2 = project_points(cam, poses, S + self._line_dirs(P), None, with_jacobian=False)
@@ -303,7 +308,7 @@ class FitProblem:
             out.line_normal = normal
             out.line_target, out.line_found = find_line_correspondences(
                 self.data.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
-                usable, cfg.line_search, cfg.corr_threshold)
+                usable, cfg.px("line_search"), cfg.corr_threshold, self.search_step)
         return out
 
     def pairwise_edge(self, poses: SE3, edge: int) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -337,12 +342,12 @@ class FitProblem:
         H: FloatArray | None = None
         if kind == "interp":
             ht = heatmap_terms(self.data.heatmaps, keyframes, channels, pr, lam,
-                               cfg.border_margin, cfg.heatmap_floor, with_jacobian)
+                               cfg.px("border_margin"), cfg.heatmap_floor, with_jacobian)
             s, g, H = ht.s, ht.g, ht.H
             n_in = int(pr.inside.sum())
         else:
             assert target is not None and found is not None
-            ct = correspondence_terms(pr, target, found, normal, lam, cfg.pixel_sigma,
+            ct = correspondence_terms(pr, target, found, normal, lam, cfg.px("pixel_sigma"),
                                       with_jacobian)
             s, g, H = ct.s, ct.g, ct.H
             n_in = int(ct.used.sum())
@@ -369,7 +374,7 @@ class FitProblem:
         cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
             smp.JA, smp.JB, smp.f, channels, maps, keyframes, kind, target, found, normal, lam,
-            cfg.pixel_sigma, cfg.border_margin, cfg.heatmap_floor, cfg.robust,
+            cfg.px("pixel_sigma"), cfg.px("border_margin"), cfg.heatmap_floor, cfg.robust,
             cfg.robust_scale, JtHJ is not None, JtHJ, g)
         return float(cost.sum()), int(count.sum())
 

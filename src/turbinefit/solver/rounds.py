@@ -26,7 +26,8 @@ FloatArray = NDArray[np.float64]
 #: A new search has converged when fewer than this fraction of the found-flags (and of the
 #: visible-part line samples) changed ...
 CONVERGED_FLIPS = 0.005
-#: ... and the targets found by both searches moved by less than this on average [px].
+#: ... and the targets found by both searches moved by less than this on average [px at
+#: 320: times the problem's ``pixel_scale`` in the maps' pixels].
 CONVERGED_SHIFT_PX = 0.25
 
 Finish = Literal["cost", "jacobian", "skip"]
@@ -130,7 +131,8 @@ def run_rounds(
         new = problem.find_correspondences(poses, theta)
         flips, shift = corr_change(corr, new)
         corr = new
-        done = last or (flips < CONVERGED_FLIPS and shift < CONVERGED_SHIFT_PX)
+        done = last or (flips < CONVERGED_FLIPS
+                        and shift < CONVERGED_SHIFT_PX * problem.config.scale)
         if done and finish == "skip":
             break
         lin = problem.linearize(poses, theta, corr,

@@ -57,7 +57,7 @@ from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
-from turbinefit.solver.config import FitConfig, resolve_pair_frame
+from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.fit import match_config
 from turbinefit.solver.linalg import arrow_covariance
 from turbinefit.solver.marginal import (
@@ -242,7 +242,9 @@ class Tracker:
     def __init__(self, camera: PinholeCamera, initial_turbine: TurbineParams,
                  config: TrackerConfig | None = None) -> None:
         self.camera = camera
-        self.config = config or TrackerConfig()
+        cfg = config or TrackerConfig()
+        # the pixel settings follow the heat-maps' width (recorded in the config)
+        self.config = dataclasses.replace(cfg, fit=resolve_pixel_scale(cfg.fit, camera.width))
         self._set_costs()
         #: whether the keyframes come with odometry (decided by the first keyframe)
         self._has_odometry: bool | None = None

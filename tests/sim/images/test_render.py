@@ -215,3 +215,33 @@ def test_clutter_is_drawn_where_it_projects(clear_scene: Scene) -> None:
     s1 = sample_scene(np.random.default_rng(8), TURBINE)
     s2 = sample_scene(np.random.default_rng(8), TURBINE)
     assert s1.clutter == s2.clutter and s1.wear == s2.wear
+
+
+def test_labels_follow_the_depth_buffer(scene: Scene) -> None:
+    """render_labels: a part wherever the photo's depth buffer holds a turbine surface, the
+    tower's span is the height of its surface point, blade angles only on blades, and the
+    photo itself is unchanged by labelling."""
+    from turbinefit.sim.images.painter import LABEL_CODES
+    from turbinefit.sim.images.render import render_labels
+
+    theta = TURBINE.to_vector()
+    eye = np.array([-60.0, 80.0, 60.0])
+    T = _look_at(eye, np.array([0.0, 0.0, 70.0]))
+    img0, depth = render_image_and_depth(CAMERA, T, theta, scene, np.random.default_rng(0))
+    lab = render_labels(CAMERA, T, theta, scene)
+    img1 = render_image(CAMERA, T, theta, scene, np.random.default_rng(0))
+    np.testing.assert_array_equal(img0, img1)
+    np.testing.assert_array_equal(lab.part > 0, np.isfinite(depth))
+    np.testing.assert_allclose(lab.depth[np.isfinite(depth)], depth[np.isfinite(depth)])
+    tower = lab.part == LABEL_CODES.index("tower")
+    blades = lab.part >= LABEL_CODES.index("blade_0")
+    blades &= lab.part <= LABEL_CODES.index("blade_2")
+    assert tower.sum() > 50 and blades.sum() > 50
+    # the tower's surface point at the ray distance has the labelled height
+    v, u = np.nonzero(tower)
+    rays = np.stack([(u - CAMERA.cx) / CAMERA.fx, (v - CAMERA.cy) / CAMERA.fy, np.ones(u.size)], -1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    z = (T.rotation_matrix() @ rays.T)[2] * lab.depth[tower] + eye[2]
+    np.testing.assert_allclose(lab.span[tower], z, atol=0.05)
+    assert np.isfinite(lab.side_angle[blades]).all() and np.isnan(lab.side_angle[tower]).all()
+    assert (lab.span[blades] >= 0).all() and (lab.span[blades] <= TURBINE.blade_length).all()

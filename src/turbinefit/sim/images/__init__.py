@@ -65,7 +65,8 @@ independent renderer to test the net on; Mitsuba is heavier still). A 320x240 im
 
 Modules: :mod:`~turbinefit.sim.images.scene` (the :class:`Scene` and its sampling),
 :mod:`~turbinefit.sim.images.textures` (per-scene noise tiles and hills),
-:mod:`~turbinefit.sim.images.turbine` (the turbine's solid),
+:mod:`~turbinefit.sim.images.turbine` (the turbine's solid, with the proportions of
+:mod:`turbinefit.turbine.solid`, which the ``turbine.glb`` of ``fit`` shares),
 :mod:`~turbinefit.sim.images.frame` (rays, buffers, lights, compositing),
 :mod:`~turbinefit.sim.images.landscape` (sky, ground, sea, hills),
 :mod:`~turbinefit.sim.images.painter` (ray casting the turbine's parts),

@@ -9,6 +9,7 @@ import math
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
@@ -103,6 +104,15 @@ class Frame:
         self.haze = column(sc.haze_colour)
         self.cam_R_world = self.R.T
         self.cam_t = -self.cam_R_world @ self.o
+        #: Per-pixel labels (:meth:`enable_labels`): part code, span [m] and side angle.
+        self.labels: tuple[NDArray[np.int8], F32, F32] | None = None
+
+    def enable_labels(self) -> None:
+        """Record, where :meth:`composite` writes the depth, the part's code, span and side
+        angle it passes (:func:`~turbinefit.sim.images.render.render_labels`)."""
+        n = self.W * self.H
+        self.labels = (np.zeros(n, dtype=np.int8), np.full(n, np.nan, dtype=np.float32),
+                       np.full(n, np.nan, dtype=np.float32))
 
     def to_cam(self, p: FloatArray) -> FloatArray:
         """World points (k, 3) in the camera frame."""
@@ -240,8 +250,11 @@ class Frame:
         h = 1.0 - np.exp(dist * np.float32(-1.0 / self.scene.visibility))
         return blend(col, self.haze, h)
 
-    def composite(self, idx: IntArray, depth: F32, cov: F32, col: F32) -> None:
-        """Blend a part's pixels (coverage ``cov``) over the buffer where it is nearest."""
+    def composite(self, idx: IntArray, depth: F32, cov: F32, col: F32,
+                  label: tuple[int, F32 | None, F32 | None] = (0, None, None)) -> None:
+        """Blend a part's pixels (coverage ``cov``) over the buffer where it is nearest;
+        ``label``: its code and per-pixel span and side angle (or None), recorded with
+        the depth when :meth:`enable_labels` was called."""
         z = self.Z[idx]
         sel = np.flatnonzero((depth < z) & (cov > 0.003))
         if sel.size == 0:
@@ -250,3 +263,9 @@ class Frame:
         old = take_cols(self.C, idx)
         put_cols(self.C, idx, blend(old, take_cols(col, sel), cov))
         self.Z[idx] = np.where(cov > 0.5, depth, z)
+        if self.labels is not None:
+            solid = cov > 0.5
+            at = idx[solid]
+            self.labels[0][at] = label[0]
+            for buf, val in zip(self.labels[1:], label[1:], strict=True):
+                buf[at] = np.nan if val is None else val[sel][solid]

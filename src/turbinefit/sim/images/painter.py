@@ -14,17 +14,14 @@ from turbinefit.sim.images.clutter import Clutter
 from turbinefit.sim.images.frame import NEAR, Frame
 from turbinefit.sim.images.scene import Scene
 from turbinefit.sim.images.textures import cell_hash
-from turbinefit.sim.images.turbine import TurbineSolid, blade_profile
+from turbinefit.sim.images.turbine import TurbineSolid
+from turbinefit.turbine.solid import blade_profile, blade_twist
 
-
-def _unit(v: FloatArray) -> FloatArray:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
-
-
-def _perp(e: FloatArray) -> FloatArray:
-    """A unit vector perpendicular to unit e."""
-    a = np.array([0.0, 0.0, 1.0]) if abs(e[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    return _unit(np.cross(e, a))
+#: Per-pixel part codes of :func:`~turbinefit.sim.images.render.render_labels`: 0 nothing,
+#: then the primary turbine's tower, nacelle, spinner and its model blades 0, 1, 2
+#: (``model_points`` tips 3, 4, 5); another turbine of the scene is :data:`LABEL_OTHER`.
+LABEL_CODES = ("none", "tower", "nacelle", "spinner", "blade_0", "blade_1", "blade_2", "other")
+LABEL_OTHER = 7
 
 
 class Painter:
@@ -33,6 +30,7 @@ class Painter:
     def __init__(self, fr: Frame, scene: Scene) -> None:
         self.fr = fr
         self.sc = scene
+        self.code = 0  # label of the part being drawn (see LABEL_CODES)
 
     def tube(self, a: FloatArray, e: FloatArray, L: float, kind: str, tb: TurbineSolid,
              c0: FloatArray) -> None:
@@ -78,8 +76,7 @@ class Painter:
             sb = np.zeros_like(u)
         else:
             A, B = blade_profile(u, tb.b)
-            beta = np.float32(self.sc.blade_pitch) + np.float32(math.radians(14.0)) * np.clip(
-                (1.0 - u) * np.float32(1 / 0.8), 0.0, 1.0) ** 1.5
+            beta = blade_twist(u, self.sc.blade_pitch)
             cb, sb = np.cos(beta), np.sin(beta)
         # view direction projected on the cross-section, in (chord, thickness) coordinates
         mc = (cb * Dc0 + sb * Dn0) * isq
@@ -155,7 +152,11 @@ class Painter:
                 band = ((u > 0.8) & (u < 0.87)) | (u > 0.93)
             albedo[:, band] = column(self.sc.tip_colour)
         col = fr.shade(albedo, nl, nz, nD, dot3(fr.sun_f, D), 0.3)
-        fr.composite(idx, depth, cov, fr.hazed(col, depth))
+        label: tuple[int, F32 | None, F32 | None] = (self.code, None, None)
+        if fr.labels is not None:  # span, and the side angle of a blade (see LABEL_CODES)
+            span = s_hit if kind == "tower" else np.clip(s_hit, 0.0, np.float32(L))
+            label = (self.code, span, None if kind == "tower" else np.arctan2(-mn, mc))
+        fr.composite(idx, depth, cov, fr.hazed(col, depth), label)
 
     def blade_surface(self, albedo: F32, span: F32, L: np.float32, chord: F32,
                       chord_m: F32) -> F32:
@@ -252,7 +253,7 @@ class Painter:
         n = matmul3(E.T, nloc)
         col = fr.shade(albedo, dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0), dot3(fr.sun_f, D),
                        0.3)
-        fr.composite(idx, tn, cov, fr.hazed(col, tn))
+        fr.composite(idx, tn, cov, fr.hazed(col, tn), (self.code, None, None))
 
     def spinner(self, tb: TurbineSolid) -> None:
         """The spinner: an ellipsoid round the hub (exact intersection)."""
@@ -287,7 +288,7 @@ class Painter:
         n /= np.maximum(np.sqrt((n * n).sum(axis=0)), 1e-12)[None]
         col = fr.shade(column(self.sc.paint), dot3(fr.sun_f, n), n[2], (n * D).sum(axis=0),
                        dot3(fr.sun_f, D), 0.35)
-        fr.composite(idx, t, cov, fr.hazed(col, t))
+        fr.composite(idx, t, cov, fr.hazed(col, t), (self.code, None, None))
 
     def rod(self, a: FloatArray, b: FloatArray, r: float, albedo: F32) -> None:
         """A round rod of radius ``r`` [m] from a to b (pylon members, poles, wires): each
@@ -351,8 +352,9 @@ class Painter:
             self.solid_box(np.array([cx, cy, cz]), E, np.array([hx, hy, hz]),
                            column(tuple(c)))  # type: ignore[arg-type]
 
-    def turbine(self, tb: TurbineSolid) -> None:
-        """All parts, far to near (so that anti-aliased edges blend over what is behind)."""
+    def turbine(self, tb: TurbineSolid, primary: bool = True) -> None:
+        """All parts, far to near (so that anti-aliased edges blend over what is behind);
+        labelled (:data:`LABEL_CODES`) as parts of the primary turbine or as another one."""
         fr = self.fr
         top = np.array([tb.base[0], tb.base[1], tb.tower_top_z])
         parts: list[tuple[float, int, int]] = [
@@ -363,6 +365,7 @@ class Painter:
         for i, tip in enumerate(tb.tips):
             parts.append((float(np.linalg.norm(0.5 * (tb.hub + tip) - fr.o)), 3, i))
         for _, kind, i in sorted(parts, key=lambda p: -p[0]):
+            self.code = (kind + 1 + i) if primary else LABEL_OTHER
             if kind == 0:
                 self.tube(tb.base, np.array([0.0, 0.0, 1.0]), float(top[2] - tb.base[2]),
                           "tower", tb, np.array([1.0, 0.0, 0.0]))
@@ -375,8 +378,5 @@ class Painter:
                 L = float(np.linalg.norm(e))
                 if L < 1e-6:
                     continue
-                e = e / L
-                c0 = np.cross(tb.shaft, e)  # chord at zero pitch: in the rotor plane
-                nc = float(np.linalg.norm(c0))
-                c0 = c0 / nc if nc > 1e-9 else _perp(e)
-                self.tube(tb.hub, e, L, "blade", tb, c0)
+                # the chord at zero pitch: in the rotor plane
+                self.tube(tb.hub, e / L, L, "blade", tb, tb.chord_axis(i))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,6 +74,55 @@ def render_image_and_depth(
     np.nan_to_num(img, copy=False, nan=0.5, posinf=1.0, neginf=0.0)
     depth = fr.Z.reshape(camera.height, camera.width).copy()
     return apply_effects(img, fr.rn, scene.effects, rng), depth
+
+
+@dataclass
+class TurbineLabels:
+    """Per-pixel ground truth of a render (:func:`render_labels`), arrays (H, W).
+
+    Attributes:
+        part: code of :data:`~turbinefit.sim.images.painter.LABEL_CODES` of the part
+            covering most of the pixel (0: none).
+        span: [m] along the part's axis at the surface point: from the hub on a blade,
+            from the base on the tower (NaN elsewhere).
+        side_angle: on a blade, the direction to the camera round the blade axis [rad],
+            from the leading edge towards the upwind (pressure) side of the blade's section
+            as drawn (pitch and twist included), for a rotor turning clockwise seen from
+            upwind (the convention of :mod:`turbinefit.inspection.surface`); NaN elsewhere.
+            The renderer's blades are symmetric about their chord and its pitch turns the
+            chord the other way round: a scene pitch ``p`` is a pitch ``-p`` there.
+        depth: ray distance [m] of the labelled surface (inf: none).
+    """
+
+    part: NDArray[np.int8]
+    span: NDArray[np.float32]
+    side_angle: NDArray[np.float32]
+    depth: NDArray[np.float32]
+
+
+def render_labels(camera: PinholeCamera, world_T_cam: SE3, turbine: ArrayLike, scene: Scene,
+                  geometry: TurbineGeometry = PAPER_GEOMETRY) -> TurbineLabels:
+    """Which part of ``turbine`` (or another turbine of ``scene``) each pixel of
+    :func:`render_image` (same arguments) shows, with span and side: the turbines drawn as
+    there, without landscape or camera effects."""
+    if world_T_cam.batch_shape != ():
+        raise ValueError(f"expected one pose, got batch {world_T_cam.batch_shape}")
+    fr = Frame(camera, world_T_cam, scene)
+    fr.C[:] = 0.5
+    fr.enable_labels()
+    thetas = [np.asarray(turbine, dtype=np.float64).ravel(), *map(np.asarray, scene.neighbours)]
+    doors = np.random.default_rng(scene.seed).uniform(-math.pi, math.pi, len(thetas))
+    turbines = [TurbineSolid(th, geometry, scene, float(dz))
+                for th, dz in zip(thetas, doors, strict=True)]
+    painter = Painter(fr, scene)
+    for k in sorted(range(len(turbines)),
+                    key=lambda q: -float(np.linalg.norm(turbines[q].centre - fr.o))):
+        painter.turbine(turbines[k], primary=k == 0)
+    assert fr.labels is not None
+    shape = (camera.height, camera.width)
+    part, span, angle = fr.labels
+    return TurbineLabels(part.reshape(shape), span.reshape(shape), angle.reshape(shape),
+                         fr.Z.reshape(shape).copy())
 
 
 def points_in_sight(camera: PinholeCamera, world_T_cam: SE3, world_p: ArrayLike,

@@ -18,11 +18,10 @@ from turbinefit.sim.images.arrays import RGB
 from turbinefit.sim.images.clutter import NO_CLUTTER, Clutter, sample_clutter
 from turbinefit.sim.images.textures import scene_assets
 from turbinefit.turbine.model import BLADE_PERIOD, TurbineParams
+from turbinefit.turbine.solid import NACELLE_HEIGHT, NACELLE_REAR, NACELLE_WIDTH
 
 #: Terrain kinds of :attr:`Scene.terrain`.
 TERRAINS = ("fields", "grass", "scrub", "forest", "dry", "snow", "offshore")
-#: Range of the nacelle's overhang behind the tower axis, in nacelle lengths.
-NACELLE_REAR = (1.9, 2.7)
 
 
 @dataclass(frozen=True)
@@ -368,8 +367,8 @@ def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
     tip_bands = int(rng.choice(3, p=[0.7, 0.15, 0.15]))
     pitch = (math.radians(rng.uniform(-2.0, 8.0)) if rng.uniform() < 0.88
              else math.radians(rng.uniform(70.0, 90.0)))
-    nacelle = (float(rng.uniform(*NACELLE_REAR)), float(rng.uniform(0.052, 0.068)),
-               float(rng.uniform(0.85, 1.1)))
+    nacelle = (float(rng.uniform(*NACELLE_REAR)), float(rng.uniform(*NACELLE_HEIGHT)),
+               float(rng.uniform(*NACELLE_WIDTH)))
     lo_q = int(rng.integers(40, 85))
     effects = CameraEffects(
         exposure_sigma=float(rng.uniform(0.05, 0.3)),

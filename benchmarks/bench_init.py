@@ -1,0 +1,169 @@
+"""``turbinefit init`` and fits started from it, against fits started from the
+simulator's near-true turbine.yaml (``turbinefit simulate``'s initial turbine).
+
+Per default 200-keyframe flight (``--flights`` seeds, GPS/IMU and VIO odometry):
+
+* ``init`` from nothing and from ``--near`` a position up to 10 m from the base: its
+  parameter errors (targets: heading and blade rotation within 5 deg, base within 2 m,
+  lengths within 5 %, on >= 95 % of flights) and its time (target < 3 s);
+* ``fit`` from each estimate and from the flight's turbine.yaml: success = final position
+  and model-point errors under 0.5 m (target >= 95 %, same accuracy as from turbine.yaml);
+* ``track`` from nothing against ``track`` from turbine.yaml on the first ``--track``
+  GPS flights (target: final position error within 10 %);
+* ``--photos N``: N flights with rendered photos, init + fit from the heat-maps the CNN
+  detects (target >= 90 %; slow: rendering and detecting 200 photos each).
+
+Usage::
+
+    python benchmarks/bench_init.py [--flights 10] [--track 3] [--photos 0]
+
+Prints a table and writes ``benchmarks/results/bench_init.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from common import RESULTS, write_json
+
+from turbinefit.eval.metrics import accuracy
+from turbinefit.jobs.sources import FILE_FIT_DEFAULTS
+from turbinefit.sim.scenario import SimConfig, simulate_flight
+from turbinefit.solver.config import FitConfig
+from turbinefit.solver.fit import fit
+from turbinefit.solver.init import TurbinePrior, initial_turbine
+from turbinefit.turbine.model import param_errors
+
+CLI_DEFAULTS = dataclasses.replace(FitConfig(), **FILE_FIT_DEFAULTS)
+GOOD_M = 0.5
+
+
+def init_ok(e: np.ndarray, truth: Any) -> bool:
+    """The issue's init targets: angles within 5 deg, base 2 m, lengths 5 %."""
+    return bool(abs(math.degrees(e[3])) < 5 and abs(math.degrees(e[5])) < 5
+                and math.hypot(e[0], e[1]) < 2
+                and abs(e[2]) < 0.05 * truth.tower_height
+                and abs(e[6]) < 0.05 * truth.blade_length
+                and abs(e[4]) < max(0.05 * truth.nacelle_length, 1.0))
+
+
+def one_flight(seed: int, odometry: str) -> dict[str, Any]:
+    flight = simulate_flight(SimConfig(seed=seed, odometry=odometry))
+    truth = flight.gt_turbine
+    assert truth is not None and flight.gt_world_T_cam is not None
+    row: dict[str, Any] = {"seed": seed, "odometry": odometry}
+    rng = np.random.default_rng(1000 + seed)
+    ang = rng.uniform(0, 2 * math.pi)
+    near = (truth.base_x + 10 * math.cos(ang), truth.base_y + 10 * math.sin(ang))
+    starts = {"yaml": flight.turbine}
+    for name, prior in (("nothing", TurbinePrior()), ("near", TurbinePrior(near_xy=near))):
+        t0 = time.perf_counter()
+        res = initial_turbine(flight.heatmaps, flight.camera, flight.world_T_cam, prior)
+        row[f"init_{name}_s"] = time.perf_counter() - t0
+        e = param_errors(res.turbine, truth)
+        row[f"init_{name}_errors"] = e.tolist()
+        row[f"init_{name}_ok"] = init_ok(e, truth)
+        starts[name] = res.turbine
+    for name, start in starts.items():
+        fl = dataclasses.replace(flight, turbine=start)
+        r = fit(fl, CLI_DEFAULTS)
+        a = accuracy(r.world_T_cam, r.turbine, flight.gt_world_T_cam, truth)
+        row[f"fit_{name}_position_m"] = a.position_error_m
+        row[f"fit_{name}_model_m"] = a.model_point_error_m
+        row[f"fit_{name}_ok"] = a.position_error_m < GOOD_M and a.model_point_error_m < GOOD_M
+    return row
+
+
+def track_pair(seed: int, root: Path) -> dict[str, Any]:
+    from turbinefit.jobs.simulate import simulate_folder
+    from turbinefit.jobs.track import track_folder
+
+    folder = simulate_folder(root / f"t{seed}", SimConfig(seed=seed))
+    a = track_folder(folder, root / f"t{seed}_yaml", plots=False).summary.final
+    (folder / "turbine.yaml").unlink()
+    b = track_folder(folder, root / f"t{seed}_none", plots=False).summary.final
+    assert a is not None and b is not None
+    return {"seed": seed, "yaml_position_m": a.position_error_m,
+            "nothing_position_m": b.position_error_m,
+            "ratio": b.position_error_m / a.position_error_m}
+
+
+def photo_flight(seed: int, root: Path) -> dict[str, Any]:
+    from turbinefit.jobs.fit import fit_folder
+    from turbinefit.jobs.simulate import simulate_folder
+
+    folder = simulate_folder(root / f"p{seed}", SimConfig(seed=seed), images=True)
+    for sub in (folder / "heatmaps").iterdir():
+        sub.unlink()
+    (folder / "heatmaps").rmdir()
+    y = fit_folder(folder, root / f"p{seed}_yaml", plots=False).summary.after
+    assert y is not None
+    (folder / "turbine.yaml").unlink()
+    rep = fit_folder(folder, root / f"p{seed}_fit", plots=False)
+    a = rep.summary.after
+    init = rep.summary.init
+    assert a is not None and init is not None and init.errors is not None
+    e = init.errors
+    return {"seed": seed, "init_errors": e, "yaml_position_m": y.position_error_m,
+            "yaml_model_m": y.model_point_error_m,
+            "yaml_ok": y.position_error_m < GOOD_M and y.model_point_error_m < GOOD_M,
+            "position_m": a.position_error_m,
+            "model_m": a.model_point_error_m,
+            "ok": a.position_error_m < GOOD_M and a.model_point_error_m < GOOD_M}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--flights", type=int, default=10)
+    ap.add_argument("--track", type=int, default=3)
+    ap.add_argument("--photos", type=int, default=0)
+    args = ap.parse_args()
+    rows = [one_flight(s, odo) for odo in ("gps", "vio") for s in range(args.flights)]
+    out: dict[str, Any] = {"machine": platform.platform(), "flights": rows}
+    n = max(len(rows), 1)
+
+    def share(key: str) -> float:
+        return 100.0 * sum(bool(r[key]) for r in rows) / n
+
+    print(f"{len(rows)} default 200-keyframe flights (seeds 0-{args.flights - 1}, gps and vio)")
+    for name in ("nothing", "near") if rows else ():
+        times = [r[f"init_{name}_s"] for r in rows]
+        err = np.array([r[f"init_{name}_errors"] for r in rows])
+        print(f"init from {name:<8}: targets met on {share(f'init_{name}_ok'):5.1f} %; worst "
+              f"heading {np.degrees(np.abs(err[:, 3])).max():.2f} deg, blade rotation "
+              f"{np.degrees(np.abs(err[:, 5])).max():.2f} deg, base "
+              f"{np.hypot(err[:, 0], err[:, 1]).max():.2f} m, tower "
+              f"{np.abs(err[:, 2]).max():.2f} m, blades {np.abs(err[:, 6]).max():.2f} m; "
+              f"time median {np.median(times):.2f} s, max {max(times):.2f} s")
+    for name in ("yaml", "nothing", "near") if rows else ():
+        pos = [r[f"fit_{name}_position_m"] for r in rows]
+        mod = [r[f"fit_{name}_model_m"] for r in rows]
+        print(f"fit from {name:<8}: success {share(f'fit_{name}_ok'):5.1f} %, position mean "
+              f"{np.mean(pos):.3f} m, model points mean {np.mean(mod):.3f} m")
+    with tempfile.TemporaryDirectory() as tmp:
+        tracks = [track_pair(s, Path(tmp)) for s in range(args.track)]
+        photos = [photo_flight(s, Path(tmp)) for s in range(args.photos)]
+    out["track"] = tracks
+    out["photos"] = photos
+    if tracks:
+        print("track from nothing / from turbine.yaml, final position error: "
+              + ", ".join(f"{t['ratio']:.3f}" for t in tracks)
+              + f" (mean {np.mean([t['ratio'] for t in tracks]):.3f})")
+    if photos:
+        print(f"photos: init + fit success {100 * np.mean([p['ok'] for p in photos]):.1f} % of "
+              f"{len(photos)}, from turbine.yaml {100 * np.mean([p['yaml_ok'] for p in photos]):.1f}"
+              " %; position init + fit / from turbine.yaml: " + ", ".join(
+                  f"{p['position_m']:.3f} / {p['yaml_position_m']:.3f}" for p in photos))
+    write_json(RESULTS / "bench_init.json", out)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,77 @@
+"""``turbinefit plan``: the next flight's waypoints round a fitted turbine
+(:func:`turbinefit.jobs.plan.plan_folder`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+DESCRIPTION = """\
+Camera waypoints (position, yaw, gimbal pitch) that photograph each blade's four
+sides (leading edge, pressure side, trailing edge, suction side) and the tower's
+four faces from --standoff metres, ordered into one path that keeps that far from
+the rotor (stopped at its fitted blade rotation). Writes waypoints.csv,
+keyframes.txt and turbine.yaml (so `turbinefit coverage OUT_DIR --camera ...`
+predicts what the flight will show), summary.json, path.png and, for a
+georeferenced flight, waypoints_wgs84.csv and waypoints.kml. Details:
+docs/inspection.md."""
+
+
+def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
+    from turbinefit.cli.common import DefaultsFormatter, number, positive_number
+
+    p: argparse.ArgumentParser = sub.add_parser(
+        "plan", help=help, description=DESCRIPTION,
+        usage="%(prog)s FIT_DIR --standoff M [--gsd MM_PER_PX] --out OUT_DIR",
+        formatter_class=DefaultsFormatter)
+    p.add_argument("fit_dir", metavar="FIT_DIR", type=Path, help="output folder of fit or track")
+    p.add_argument("--standoff", type=positive_number, required=True, metavar="M",
+                   help="camera to the surface photographed [m]")
+    p.add_argument("--gsd", type=positive_number, default=None, metavar="MM_PER_PX",
+                   help="resolution to reach [mm/px] (refused if the camera cannot at the "
+                   "stand-off)")
+    p.add_argument("--out", type=Path, required=True, metavar="OUT_DIR", help="output folder")
+    p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
+                   help="the next flight's camera (camera_info YAML); default: the fit's flight's")
+    p.add_argument("--flight", type=Path, default=None, metavar="FLIGHT_DIR",
+                   help="the fit's flight folder (camera, georef.yaml); default: the one "
+                   "summary.json names")
+    p.add_argument("--overlap", type=number, default=0.3, metavar="F",
+                   help="fraction of the footprint neighbouring photos share")
+    p.add_argument("--max-gimbal-up", type=number, default=90.0, metavar="DEG",
+                   help="the gimbal's largest upward pitch [deg]")
+    p.add_argument("--tower-clearance", type=number, default=None, metavar="M",
+                   help="least distance from the tower and the nacelle [m] (default: a quarter "
+                   "of the stand-off: the suction sides of blades pointing down are seen from "
+                   "beside the tower)")
+    p.add_argument("--no-plots", action="store_true", help="skip path.png")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT_DIR's outputs")
+    p.add_argument("--quiet", action="store_true", help="print nothing")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from turbinefit.jobs.plan import plan_folder
+
+    camera = None
+    if args.camera is not None:
+        from turbinefit.io.camera_yaml import read_camera_yaml
+
+        camera = read_camera_yaml(args.camera)
+    report = plan_folder(args.fit_dir, args.out, standoff=args.standoff, max_gsd_mm=args.gsd,
+                         camera=camera, flight_dir=args.flight, overlap=args.overlap,
+                         max_gimbal_up_deg=args.max_gimbal_up,
+                         tower_clearance=args.tower_clearance, plots=not args.no_plots,
+                         overwrite=args.overwrite)
+    if args.quiet:
+        return 0
+    s = report.summary
+    print(f"planned {s['photos']} photos, {s['waypoints']} waypoints, path {s['length_m']:.0f} m "
+          f"at {s['standoff_m']:g} m ({s['gsd_mm_px']:.2f} mm/px); clearance from the rotor "
+          f"{s['min_rotor_clearance_m']:.2f} m, from the tower {s['min_tower_clearance_m']:.2f} m")
+    if s["skipped"]:
+        print("stations without a clear view: "
+              + ", ".join(f"{k} {n}" for k, n in s["skipped"].items()))
+    print(f"wrote {args.out}")
+    return 0

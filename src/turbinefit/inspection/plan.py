@@ -1,0 +1,411 @@
+"""Camera waypoints that cover each blade's four sides and the tower at a stand-off, ordered
+into one path that keeps clear of the rotor (the turbine stopped at its fitted blade
+rotation).
+
+**Stations.** Each side of each blade (:data:`~turbinefit.inspection.surface.BLADE_SIDES`)
+and each face of the tower is photographed from stations along its span: the camera
+looks across the part's axis, straight at the side (along the side's normal; the blade
+flat in the rotor plane unless a pitch is given), from ``standoff`` metres off the
+modelled surface. Stations are spaced so that neighbouring photos share ``overlap`` of
+the footprint along the part (the image's short side, at the stand-off), from the
+spinner's edge (the ground) to the tip (the nacelle). Where the straight view is
+blocked or would bring the camera within the stand-off of the rotor (the hub and the
+other blades), or beyond the gimbal's upward pitch, the view turns about the part's axis
+by up to 40 deg (still inside the side's 90 deg sector, so the side is still the one
+seen); a station no turn clears is left out and counted. A stand-off at which more than
+half the stations of a blade side are blocked by the rotor "meets the rotor" (an error).
+
+**Clearance.** The camera keeps ``standoff`` from every blade and the spinner along the
+whole path (checked every quarter metre), and ``tower_clearance`` (a quarter of the
+stand-off unless given) from the tower and the nacelle (which the suction sides' stations
+need to come near), and stays above ``min_altitude``. Consecutive waypoints are joined
+straight if that leg is clear, else through transit planes parallel to the rotor: one
+upwind of the spinner, one downwind of the nacelle, crossing between them through the
+gap between blades that points highest.
+
+**Order.** Upwind first (for each blade A, B, C: leading edge, pressure side, trailing
+edge), then downwind (each blade's suction side), then the tower's faces (back, left,
+front, right), each sweep run in the direction that starts nearest the end of the
+previous one.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.inspection.surface import BLADE_SIDES, TOWER, FloatArray, TurbineSurface
+
+#: Turns of the view about the part's axis tried at a station, in order [deg].
+TURNS_DEG = (0.0, 15.0, -15.0, 30.0, -30.0, 40.0, -40.0)
+#: Sides in the order they are flown (indices into BLADE_SIDES) upwind, then downwind.
+UPWIND_SIDES = (0, 1, 2)
+DOWNWIND_SIDES = (3,)
+#: Tower faces in the order they are flown (indices into TOWER_FACES).
+TOWER_ORDER = (2, 3, 0, 1)
+
+
+class PlanError(ValueError):
+    """A plan that cannot be made: the stand-off meets the rotor, or the camera cannot reach
+    the resolution asked for at it; ``option`` names the option at fault (``standoff``,
+    ``max_gsd_mm``, ``overlap``)."""
+
+    def __init__(self, message: str, option: str) -> None:
+        super().__init__(message)
+        self.option = option
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """What the plan must achieve.
+
+    Attributes:
+        standoff: camera to the surface of the part photographed [m].
+        max_gsd_mm: the resolution asked for [mm/px], or None (what the camera gives).
+        overlap: fraction of the footprint neighbouring photos share (0-0.9).
+        max_gimbal_up_deg: the gimbal's largest upward pitch [deg] (90: no limit).
+        min_altitude: lowest camera height above the ground [m].
+        tower_clearance: least distance from the tower and the nacelle [m] (None: a quarter
+            of the stand-off).
+    """
+
+    standoff: float
+    max_gsd_mm: float | None = None
+    overlap: float = 0.3
+    max_gimbal_up_deg: float = 90.0
+    min_altitude: float = 2.0
+    tower_clearance: float | None = None
+
+
+@dataclass
+class Waypoint:
+    """One point of the path.
+
+    Attributes:
+        position: camera position (3,) [m, world].
+        yaw: azimuth of the view from the world x axis, counter-clockwise from above [rad].
+        pitch: elevation of the view, positive up [rad] (the gimbal's pitch).
+        part: index into :data:`~turbinefit.inspection.surface.PARTS` of the part a photo is
+            taken of, -1 for a transit point (no photo).
+        side: the side (blade) or face (tower) photographed, -1 for transit.
+        span: span of the station [m] (NaN for transit).
+    """
+
+    position: FloatArray
+    yaw: float
+    pitch: float
+    part: int = -1
+    side: int = -1
+    span: float = math.nan
+
+    @property
+    def photo(self) -> bool:
+        return self.part >= 0
+
+
+@dataclass
+class Plan:
+    """A path round the turbine (:func:`plan_path`).
+
+    Attributes:
+        waypoints: in flying order, photo stations and transit points.
+        gsd_mm: the resolution at the stand-off [mm/px].
+        skipped: per (part, side) the stations no view could clear.
+        stations: per (part, side) the stations planned (photos).
+        min_rotor_clearance: least distance of the path from the rotor [m].
+        min_tower_clearance: least distance of the path from the tower and nacelle [m].
+    """
+
+    waypoints: list[Waypoint]
+    gsd_mm: float
+    skipped: dict[tuple[int, int], int] = field(default_factory=dict)
+    stations: dict[tuple[int, int], int] = field(default_factory=dict)
+    min_rotor_clearance: float = math.inf
+    min_tower_clearance: float = math.inf
+
+    @property
+    def length_m(self) -> float:
+        p = np.array([w.position for w in self.waypoints])
+        return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+
+    @property
+    def photos(self) -> list[Waypoint]:
+        return [w for w in self.waypoints if w.photo]
+
+
+def _rotate(v: FloatArray, axis: FloatArray, angle: float) -> FloatArray:
+    """v rotated about unit ``axis`` by ``angle`` (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return v * c + np.cross(axis, v) * s + axis * float(axis @ v) * (1.0 - c)
+
+
+class _Clearance:
+    """Distances of points from the rotor (blades, spinner) and from the tower and nacelle."""
+
+    def __init__(self, surface: TurbineSurface) -> None:
+        self.s = surface
+
+    def blade(self, p: FloatArray, i: int) -> FloatArray:
+        s, bl = self.s, self.s.blades[i]
+        w = p - bl.root
+        t = np.clip(w @ bl.axis, 0.0, bl.length)
+        perp = w - t[:, None] * bl.axis
+        A, B = s.blade_section(t)
+        r = np.linalg.norm(perp, axis=1)
+        cth = (perp @ bl.chord) / np.maximum(r, 1e-12)
+        sth = (perp @ bl.normal) / np.maximum(r, 1e-12)
+        ext = np.sqrt((A * cth) ** 2 + (B * sth) ** 2)
+        axial = w @ bl.axis - t
+        return np.hypot(np.maximum(r - ext, 0.0), axial) - np.maximum(ext - r, 0.0)
+
+    def rotor(self, p: FloatArray, skip: int = -1) -> FloatArray:
+        s = self.s
+        d = np.full(len(p), np.inf)
+        for i in range(3):
+            if i != skip:
+                d = np.minimum(d, self.blade(p, i))
+        spin = np.linalg.norm(p - s.spinner_centre, axis=1) - float(np.max(s.spinner_radii))
+        return np.minimum(d, spin)
+
+    def tower(self, p: FloatArray) -> FloatArray:
+        s = self.s
+        z = np.clip(p[:, 2] - s.base[2], 0.0, s.h)
+        r = np.hypot(p[:, 0] - s.base[0], p[:, 1] - s.base[1]) - s.tower_radius(z)
+        above = np.maximum(p[:, 2] - s.base[2] - s.h, 0.0)
+        tower = np.hypot(np.maximum(r, 0.0), above) - np.maximum(-r, 0.0) * (above == 0)
+        E = np.stack([s.shaft, s.side, s.up])
+        q = np.abs((p - s.nacelle_centre) @ E.T) - s.nacelle_half
+        box = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        return np.minimum(tower, box)
+
+
+def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptions) -> Plan:
+    """Waypoints covering each blade's sides and the tower (see the module docstring).
+
+    Raises:
+        PlanError: the camera cannot reach ``options.max_gsd_mm`` at the stand-off, or the
+            stand-off meets the rotor (no clear view of a blade side at it).
+    """
+    opt = options
+    d = float(opt.standoff)
+    if not (d > 0 and math.isfinite(d)):
+        raise PlanError(f"the stand-off must be a positive number of metres, got {d:g}",
+                        "standoff")
+    f = math.sqrt(camera.fx * camera.fy)
+    gsd = 1000.0 * d / f
+    if opt.max_gsd_mm is not None and gsd > opt.max_gsd_mm * (1 + 1e-9):
+        raise PlanError(
+            f"the camera (focal length {f:.0f} px) reaches {gsd:.2f} mm/px at a stand-off of "
+            f"{d:g} m, coarser than {opt.max_gsd_mm:g} mm/px: come within "
+            f"{opt.max_gsd_mm * f / 1000.0:.2f} m or use a longer lens", "max_gsd_mm")
+    if not 0.0 <= opt.overlap < 0.9:
+        raise PlanError(f"overlap must be in [0, 0.9), got {opt.overlap:g}", "overlap")
+    s = surface
+    if d >= s.b:
+        raise PlanError(f"a stand-off of {d:g} m meets the rotor: it is not shorter than the "
+                        f"blades ({s.b:.1f} m)", "standoff")
+    clear = _Clearance(s)
+    t_clear = d / 4.0 if opt.tower_clearance is None else float(opt.tower_clearance)
+    if not 0.0 < t_clear <= d:
+        raise PlanError(f"the tower clearance must be more than 0 and at most the stand-off "
+                        f"({d:g} m), got {t_clear:g}", "tower_clearance")
+    max_up = math.radians(opt.max_gimbal_up_deg)
+    foot = min(camera.width, camera.height) * d / f  # footprint along the part [m]
+    step = max((1.0 - opt.overlap) * foot, 0.1)
+    sweeps: dict[tuple[int, int], list[Waypoint]] = {}
+    plan = Plan([], gsd)
+
+    def station(part: int, side: int, span: float, centre: FloatArray, axis: FloatArray,
+                normal: FloatArray, section: tuple[float, float, FloatArray, FloatArray]
+                ) -> Waypoint | str:
+        """The first view of ``TURNS_DEG`` that clears, else why none does (``gimbal``:
+        every view looks up too steeply; ``clearance``); ``section``: half chord, half
+        thickness, chord and thickness directions across the axis."""
+        a, b, cdir, ndir = section
+        why = "gimbal"
+        for turn in TURNS_DEG:
+            o = _rotate(normal, axis, math.radians(turn))
+            ext = math.hypot(a * float(o @ cdir), b * float(o @ ndir))
+            c = centre + (d + ext) * o
+            view = -o
+            if math.asin(max(-1.0, min(1.0, view[2]))) > max_up:
+                continue
+            why = "clearance"
+            if c[2] < opt.min_altitude:
+                continue
+            rot = clear.rotor(c[None], skip=part if part < 3 else -1)[0]
+            if rot < d or clear.tower(c[None])[0] < (t_clear if part < 3 else d):
+                continue
+            hits = s.cast_rays(c[None], view[None])
+            if int(hits.part[0]) != part:
+                continue
+            return Waypoint(c, math.atan2(view[1], view[0]), math.asin(view[2]), part, side,
+                            span)
+        return why
+
+    for i, bl in enumerate(s.blades):
+        lo = float(s.spinner_radii[1])
+        spans = _stations(lo, bl.length, foot, step)
+        # the widest section within half a step: straight legs between stations stay clear
+        near = np.clip(spans[:, None] + step * np.array([-0.5, -0.25, 0.0, 0.25, 0.5]), 0.0,
+                       bl.length)
+        A, B = (v.max(axis=1) for v in s.blade_section(near))
+        for side in range(4):
+            normal0 = [bl.chord, bl.normal, -bl.chord, -bl.normal][side]
+            sw, blocked = [], 0
+            for j, sp in enumerate(spans):
+                w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal0,
+                            (float(A[j]), float(B[j]), bl.chord, bl.normal))
+                if isinstance(w, Waypoint):
+                    sw.append(w)
+                else:
+                    blocked += w == "clearance"
+            sweeps[(i, side)] = sw
+            plan.stations[(i, side)] = len(sw)
+            plan.skipped[(i, side)] = len(spans) - len(sw)
+            if blocked > 0.5 * len(spans):
+                raise PlanError(
+                    f"a stand-off of {d:g} m meets the rotor: only {len(sw)} of {len(spans)} "
+                    f"views of blade {bl.name}'s {BLADE_SIDES[side].replace('_', ' ')} keep "
+                    f"{d:g} m from the other blades and the hub", "standoff")
+    top = float(s.nacelle_centre[2] - s.nacelle_half[2])
+    heights = _stations(max(opt.min_altitude, float(s.base[2])), top, foot, step)
+    zaxis = np.array([0.0, 0.0, 1.0])
+    face_dirs = [s.heading_dir, s.tower_right, -s.heading_dir, -s.tower_right]
+    for face in range(4):
+        sw = []
+        for z in heights:
+            r = float(s.tower_radius(z - s.base[2]))
+            centre = np.array([s.base[0], s.base[1], z])
+            w = station(TOWER, face, float(z), centre, zaxis, face_dirs[face],
+                        (r, r, s.heading_dir, s.tower_right))
+            if isinstance(w, Waypoint):
+                sw.append(w)
+        sweeps[(TOWER, face)] = sw
+        plan.stations[(TOWER, face)] = len(sw)
+        plan.skipped[(TOWER, face)] = len(heights) - len(sw)
+
+    order = [(i, k) for i in range(3) for k in UPWIND_SIDES]
+    order += [(i, k) for i in range(3) for k in DOWNWIND_SIDES]
+    order += [(TOWER, k) for k in TOWER_ORDER]
+    router = _Router(s, clear, d, t_clear, opt.min_altitude)
+    path: list[Waypoint] = []
+    for key in order:
+        sw = sweeps[key]
+        if not sw:
+            continue
+        if path and np.linalg.norm(sw[-1].position - path[-1].position) < np.linalg.norm(
+                sw[0].position - path[-1].position):
+            sw = sw[::-1]
+        for w in sw:
+            if path:
+                path += router.connect(path[-1], w)
+            path.append(w)
+    plan.waypoints = path
+    pts = _densify(np.array([w.position for w in path]), 0.25)
+    if len(pts):
+        plan.min_rotor_clearance = float(clear.rotor(pts).min())
+        plan.min_tower_clearance = float(clear.tower(pts).min())
+    return plan
+
+
+def _stations(lo: float, hi: float, foot: float, step: float) -> FloatArray:
+    """Evenly spaced stations from ``lo`` to ``hi`` (each end 0.4 footprints inside), at
+    most ``step`` apart."""
+    a, b = lo + 0.4 * foot, hi - 0.4 * foot
+    if b <= a:
+        return np.array([0.5 * (lo + hi)])
+    n = math.ceil((b - a) / step) + 1
+    return np.linspace(a, b, n)
+
+
+def _densify(p: FloatArray, step: float = 0.5) -> FloatArray:
+    """Points along the polyline ``p`` (n, 3) at most ``step`` apart."""
+    if len(p) < 2:
+        return p
+    out = [p[:1]]
+    for a, b in itertools.pairwise(p):
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step))
+        t = np.linspace(0.0, 1.0, n + 1)[1:, None]
+        out.append(a + t * (b - a))
+    return np.concatenate(out)
+
+
+class _Router:
+    """Legs between consecutive waypoints: straight if clear, else through the transit
+    planes (see the module docstring)."""
+
+    def __init__(self, s: TurbineSurface, clear: _Clearance, d: float, t_clear: float,
+                 min_alt: float) -> None:
+        self.s, self.clear, self.d, self.t, self.min_alt = s, clear, d, t_clear, min_alt
+        spin_front = float(0.25 * s.spinner_radii[0] + s.spinner_radii[0])
+        self.up_off = d + max(spin_front, s.max_half_chord()) + 1.0
+        rear = float(np.linalg.norm(s.nacelle_centre - s.hub)) + float(s.nacelle_half[0])
+        self.down_off = -(max(rear + t_clear, d + s.max_half_chord()) + 1.0)
+        # crossing: through the gap between blades whose bisector points highest
+        bis = []
+        for i in range(3):
+            a, b = s.blades[i].axis, s.blades[(i + 1) % 3].axis
+            m = a + b
+            if float(np.linalg.norm(m)) < 1e-9:
+                continue
+            bis.append(m / np.linalg.norm(m))
+        gap = max(bis, key=lambda v: float(v[2])) if bis else s.up
+        a_max = s.max_half_chord()
+        radius = max((d + a_max) / math.sin(math.radians(60.0)),
+                     d + float(np.max(s.spinner_radii))) + 1.0
+        self.cross = s.hub + radius * gap
+
+    def _clear(self, pts: FloatArray) -> bool:
+        q = _densify(pts, 0.25)
+        return bool(np.all(self.clear.rotor(q) >= self.d - 1e-6)
+                    and np.all(self.clear.tower(q) >= self.t - 1e-6)
+                    and np.all(q[:, 2] >= self.min_alt - 1e-6))
+
+    def _offset(self, p: FloatArray) -> float:
+        return float((p - self.s.hub) @ self.s.shaft)
+
+    def _to_plane(self, p: FloatArray, off: float) -> FloatArray:
+        return p + (off - self._offset(p)) * self.s.shaft
+
+    def connect(self, a: Waypoint, b: Waypoint) -> list[Waypoint]:
+        pa, pb = a.position, b.position
+        if self._clear(np.stack([pa, pb])):
+            return []
+        routes = []
+        if a.part == TOWER and b.part == TOWER:  # round the tower at the lower height
+            z = min(pa[2], pb[2])
+            c = self.s.base[:2]
+            ra, rb = pa[:2] - c, pb[:2] - c
+            a0, a1 = math.atan2(ra[1], ra[0]), math.atan2(rb[1], rb[0])
+            da = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
+            rad = 0.5 * (float(np.linalg.norm(ra)) + float(np.linalg.norm(rb)))
+            arc = [np.array([c[0] + rad * math.cos(a0 + t * da), c[1] + rad * math.sin(a0 + t * da),
+                             z]) for t in np.linspace(0.0, 1.0, 7)]
+            routes.append(arc)
+        for plane in (self.up_off, self.down_off):
+            routes.append([self._to_plane(pa, plane), self._to_plane(pb, plane)])
+        for pa_plane, pb_plane in ((self.up_off, self.down_off), (self.down_off, self.up_off)):
+            routes.append([self._to_plane(pa, pa_plane), self._to_plane(self.cross, pa_plane),
+                           self._to_plane(self.cross, pb_plane), self._to_plane(pb, pb_plane)])
+        best: list[FloatArray] | None = None
+        for r in routes:
+            pts = np.stack([pa, *r, pb])
+            pts[:, 2] = np.maximum(pts[:, 2], self.min_alt)
+            if self._clear(pts):
+                best = list(pts[1:-1])
+                break
+        if best is None:  # no clear route: the shortest through the planes (counted later)
+            best = min(routes, key=lambda r: float(np.sum(np.linalg.norm(
+                np.diff(np.stack([pa, *r, pb]), axis=0), axis=1))))
+        out = []
+        for p in best:
+            v = b.position - p
+            n = float(np.linalg.norm(v))
+            yaw = math.atan2(v[1], v[0]) if n > 1e-9 else b.yaw
+            out.append(Waypoint(np.asarray(p, dtype=np.float64), yaw, 0.0))
+        return out

@@ -1,0 +1,209 @@
+"""The ``plan`` job: the next flight's waypoints round a fitted turbine
+(:mod:`turbinefit.inspection.plan`), written as ``waypoints.csv``, the photos' poses
+(``keyframes.txt``, TUM, with the fitted ``turbine.yaml``: the folder is one ``coverage``
+reads, so the coverage a plan reaches is ``turbinefit coverage PLAN_DIR --camera ...``),
+``summary.json`` and ``path.png``; for a georeferenced flight also
+``waypoints_wgs84.csv`` and ``waypoints.kml``.
+
+The KML is written by hand with :mod:`xml.etree.ElementTree`: it is one ``LineString``
+and a ``Point`` per photo, and the KML libraries are either unmaintained (simplekml's last
+release is from 2021, pykml's from 2019) or pull in geometry and date libraries for it
+(fastkml needs pygeoif and arrow).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from turbinefit import __version__
+from turbinefit.errors import InputError
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
+from turbinefit.inspection.coverage import side_names
+from turbinefit.inspection.plan import Plan, PlanError, PlanOptions, plan_path
+from turbinefit.inspection.surface import PARTS, TurbineSurface
+from turbinefit.io.atomic import write_text_atomic
+from turbinefit.io.georef import Georef, gimbal_from_world_T_cam
+from turbinefit.io.tum import write_tum
+from turbinefit.io.turbine_yaml import write_turbine_yaml
+from turbinefit.jobs.coverage import MappingSummary, read_fit_output
+from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, summary_json
+
+PLAN_OUTPUTS = OutputKind("plan", frozenset({
+    "waypoints.csv", "waypoints_wgs84.csv", "waypoints.kml", "keyframes.txt", "turbine.yaml",
+    "summary.json", "path.png"}))
+WAYPOINT_COLUMNS = "index,x,y,z,yaw_deg,gimbal_pitch_deg,photo,part,side,span_m"
+WGS84_COLUMNS = "index,latitude,longitude,altitude,yaw,gimbal_pitch,photo,part,side,span_m"
+
+
+@dataclass
+class PlanReport:
+    """What :func:`plan_folder` did: the plan, the summary written and timings [s]."""
+
+    plan: Plan
+    out_dir: Path
+    summary: dict[str, Any]
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _label(w: Any) -> tuple[str, str, str]:
+    if not w.photo:
+        return "", "", ""
+    return PARTS[w.part], side_names(w.part)[w.side], f"{w.span:.2f}"
+
+
+def photo_poses(plan: Plan) -> SE3:
+    """``world_T_cam`` of the plan's photos (level cameras: no roll)."""
+    ph = plan.photos
+    return world_T_cam_from_angles(np.array([w.position for w in ph]).reshape(-1, 3),
+                                   np.array([w.yaw for w in ph]),
+                                   np.array([w.pitch for w in ph]), 0.0)
+
+
+def format_waypoints_csv(plan: Plan) -> str:
+    """The text of ``waypoints.csv`` (world frame, yaw from the x axis counter-clockwise)."""
+    rows = [WAYPOINT_COLUMNS]
+    for i, w in enumerate(plan.waypoints):
+        part, side, span = _label(w)
+        x, y, z = (float(v) for v in w.position)
+        rows.append(f"{i},{x:.3f},{y:.3f},{z:.3f},{math.degrees(w.yaw):.3f},"
+                    f"{math.degrees(w.pitch):.3f},{int(w.photo)},{part},{side},{span}")
+    return "\n".join(rows) + "\n"
+
+
+def _wgs84(plan: Plan, georef: Georef) -> tuple[Any, ...]:
+    w = plan.waypoints
+    poses = world_T_cam_from_angles(np.array([p.position for p in w]),
+                                    np.array([p.yaw for p in w]),
+                                    np.array([p.pitch for p in w]), 0.0)
+    g = gimbal_from_world_T_cam(georef, poses)
+    # the gimbal's yaw is the view's, also looking straight up or down
+    yaw = (90.0 - np.degrees([p.yaw for p in w]) + 180.0) % 360.0 - 180.0
+    return g.latitude, g.longitude, g.altitude, yaw, np.degrees([p.pitch for p in w])
+
+
+def format_wgs84_waypoints(plan: Plan, georef: Georef) -> str:
+    """The text of ``waypoints_wgs84.csv`` (DJI's gimbal convention: yaw clockwise from
+    north, pitch 0 level and -90 down; altitude in the flight's datum)."""
+    lat, lon, alt, yaw, pitch = _wgs84(plan, georef)
+    rows = [WGS84_COLUMNS]
+    for i, w in enumerate(plan.waypoints):
+        part, side, span = _label(w)
+        rows.append(f"{i},{lat[i]:.10f},{lon[i]:.10f},{alt[i]:.3f},{yaw[i]:.3f},"
+                    f"{pitch[i]:.3f},{int(w.photo)},{part},{side},{span}")
+    return "\n".join(rows) + "\n"
+
+
+def format_kml(plan: Plan, georef: Georef, name: str) -> str:
+    """The text of ``waypoints.kml``: the path as a ``LineString`` and each photo as a
+    ``Point`` (altitude absolute, in the flight's datum), with its gimbal angles."""
+    lat, lon, alt, yaw, pitch = _wgs84(plan, georef)
+    ns = "http://www.opengis.net/kml/2.2"
+    ET.register_namespace("", ns)
+    kml = ET.Element(f"{{{ns}}}kml")
+    doc = ET.SubElement(kml, f"{{{ns}}}Document")
+    ET.SubElement(doc, f"{{{ns}}}name").text = name
+    path = ET.SubElement(doc, f"{{{ns}}}Placemark")
+    ET.SubElement(path, f"{{{ns}}}name").text = "path"
+    line = ET.SubElement(path, f"{{{ns}}}LineString")
+    ET.SubElement(line, f"{{{ns}}}altitudeMode").text = "absolute"
+    ET.SubElement(line, f"{{{ns}}}coordinates").text = " ".join(
+        f"{lon[i]:.9f},{lat[i]:.9f},{alt[i]:.2f}" for i in range(len(plan.waypoints)))
+    for i, w in enumerate(plan.waypoints):
+        if not w.photo:
+            continue
+        part, side, span = _label(w)
+        pm = ET.SubElement(doc, f"{{{ns}}}Placemark")
+        ET.SubElement(pm, f"{{{ns}}}name").text = f"{i} {part} {side} {span} m"
+        ET.SubElement(pm, f"{{{ns}}}description").text = (
+            f"gimbal yaw {yaw[i]:.1f} deg, pitch {pitch[i]:.1f} deg")
+        pt = ET.SubElement(pm, f"{{{ns}}}Point")
+        ET.SubElement(pt, f"{{{ns}}}altitudeMode").text = "absolute"
+        ET.SubElement(pt, f"{{{ns}}}coordinates").text = f"{lon[i]:.9f},{lat[i]:.9f},{alt[i]:.2f}"
+    ET.indent(kml)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(kml, encoding="unicode") + "\n"
+
+
+def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+                standoff: float, max_gsd_mm: float | None = None,
+                camera: PinholeCamera | None = None,
+                flight_dir: str | os.PathLike[str] | None = None, overlap: float = 0.3,
+                max_gimbal_up_deg: float = 90.0, tower_clearance: float | None = None,
+                plots: bool = True, overwrite: bool = False) -> PlanReport:
+    """Plan the next flight round the fit in ``fit_dir`` (its fitted turbine, stopped at its
+    blade rotation) at ``standoff`` metres with ``camera`` (default: the photos' camera of
+    the flight the fit came from) and write it to ``out_dir`` (see the module docstring).
+
+    Raises:
+        InputError: a fit folder without poses or turbine, a stand-off that meets the rotor,
+            a resolution ``max_gsd_mm`` the camera cannot reach at the stand-off, a bad
+            ``out_dir`` (checked first); nothing is written.
+    """
+    t0 = time.perf_counter()
+    fit_dir, out_dir = Path(fit_dir), Path(out_dir)
+    inputs = [fit_dir] + ([] if flight_dir is None else [Path(flight_dir)])
+    PLAN_OUTPUTS.check(out_dir, inputs, overwrite)
+    fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
+    if fit.flight_dir is not None:
+        check_not_input(out_dir, [fit.flight_dir])
+    cam = camera or fit.camera
+    assert cam is not None
+    surface = TurbineSurface(fit.turbine, fit.geometry)
+    options = PlanOptions(standoff, max_gsd_mm, overlap, max_gimbal_up_deg,
+                          tower_clearance=tower_clearance)
+    try:
+        plan = plan_path(surface, cam, options)
+    except PlanError as exc:
+        option = {"standoff": "--standoff", "max_gsd_mm": "--gsd",
+                  "tower_clearance": "--tower-clearance"}.get(exc.option, exc.option)
+        raise InputError(str(exc), field=option) from None
+    timings = {"plan": time.perf_counter() - t0}
+    stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
+    skipped = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.skipped.items() if n}
+    summary = {
+        "turbinefit_version": __version__, "fit": str(fit_dir),
+        "flight": None if fit.flight_dir is None else str(fit.flight_dir),
+        "standoff_m": standoff, "max_gsd_mm_px": max_gsd_mm, "gsd_mm_px": round(plan.gsd_mm, 4),
+        "camera": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy},
+        "overlap": overlap, "max_gimbal_up_deg": max_gimbal_up_deg,
+        "waypoints": len(plan.waypoints), "photos": len(plan.photos),
+        "length_m": round(plan.length_m, 2),
+        "min_rotor_clearance_m": round(plan.min_rotor_clearance, 3),
+        "min_tower_clearance_m": round(plan.min_tower_clearance, 3),
+        "stations": stations, "skipped": skipped,
+        "blades": {bl.name: round(bl.clock_deg, 3) for bl in surface.blades},
+        "georeferenced": fit.georef is not None, "timing_s": timings,
+    }
+    poses = photo_poses(plan)
+    with PLAN_OUTPUTS.writing(out_dir, overwrite) as tmp:
+        write_text_atomic(tmp / "waypoints.csv", format_waypoints_csv(plan), fsync=False)
+        write_tum(tmp / "keyframes.txt", np.arange(len(plan.photos), dtype=np.float64), poses,
+                  comment="turbinefit plan: the planned photos' world_T_cam (timestamp = "
+                  "photo number)")
+        write_turbine_yaml(tmp / "turbine.yaml", fit.turbine,
+                           comment="turbinefit plan: the fitted turbine planned round")
+        if fit.georef is not None:
+            write_text_atomic(tmp / "waypoints_wgs84.csv",
+                              format_wgs84_waypoints(plan, fit.georef), fsync=False)
+            write_text_atomic(tmp / "waypoints.kml",
+                              format_kml(plan, fit.georef, f"turbinefit plan of {fit_dir.name}"),
+                              fsync=False)
+        if plots:
+            from turbinefit.plots.inspection import plot_path
+
+            try:
+                plot_path(tmp / "path.png", plan, surface)
+            except OSError as exc:
+                raise plot_error(exc, out_dir) from exc
+        timings["total"] = time.perf_counter() - t0
+        write_text_atomic(tmp / "summary.json", summary_json(MappingSummary(summary)),
+                          fsync=False)
+    return PlanReport(plan, out_dir, summary, timings)

@@ -1,0 +1,122 @@
+"""``turbinefit plan`` on a small simulated fit: its outputs (georeferenced too), the plan
+folder read back by ``coverage``, and bad input refused in one line with nothing written."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support import assert_one_line_error, assert_valid_png, run
+
+from turbinefit.cli import main
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.io.camera_yaml import write_camera_yaml
+from turbinefit.io.georef import Georef, format_georef_yaml
+
+
+@pytest.fixture(scope="module")
+def fit_dir(sim_flight_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("plan") / "fit"
+    assert main(["fit", str(sim_flight_dir), "--out", str(out), "--no-plots", "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def camera_yaml(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("cam") / "camera.yaml"
+    write_camera_yaml(path, PinholeCamera(5280, 3956, 7350.0, 7350.0, 2639.5, 1977.5))
+    return path
+
+
+def test_plan_writes_waypoints_and_coverage_reads_them(
+        fit_dir: Path, camera_yaml: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plan"
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--gsd", "2",
+                          "--camera", str(camera_yaml), "--out", str(out))
+    assert rc == 0, err
+    assert "photos" in stdout and "clearance from the rotor" in stdout
+    assert sorted(p.name for p in out.iterdir()) == [
+        "keyframes.txt", "path.png", "summary.json", "turbine.yaml", "waypoints.csv"]
+    rows = list(csv.DictReader((out / "waypoints.csv").open()))
+    photos = [r for r in rows if r["photo"] == "1"]
+    assert len(photos) > 100 and len(rows) > len(photos)
+    assert {r["part"] for r in photos} == {"blade_A", "blade_B", "blade_C", "tower"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["min_rotor_clearance_m"] >= 10.0 - 1e-3
+    assert summary["gsd_mm_px"] == pytest.approx(1000 * 10 / 7350, abs=1e-3)
+    assert summary["length_m"] > 0 and summary["photos"] == len(photos)
+    assert_valid_png(out / "path.png")
+    cov = tmp_path / "cov"
+    assert main(["coverage", str(out), "--camera", str(camera_yaml), "--out", str(cov),
+                 "--no-plots", "--quiet"]) == 0
+    c = json.loads((cov / "summary.json").read_text())["coverage"]
+    for blade in ("blade_A", "blade_B", "blade_C"):
+        assert min(v["covered"] for v in c[blade].values()) > 0.9
+
+
+def test_plan_of_a_georeferenced_flight(fit_dir: Path, sim_flight_dir: Path, camera_yaml: Path,
+                                        tmp_path: Path) -> None:
+    flight = Path(shutil.copytree(sim_flight_dir, tmp_path / "flight"))
+    georef = Georef(51.45, -2.51, 40.0)
+    (flight / "georef.yaml").write_text(format_georef_yaml(georef))
+    out = tmp_path / "plan"
+    assert main(["plan", str(fit_dir), "--flight", str(flight), "--standoff", "12",
+                 "--camera", str(camera_yaml), "--out", str(out), "--no-plots",
+                 "--quiet"]) == 0
+    world = list(csv.DictReader((out / "waypoints.csv").open()))
+    wgs = list(csv.DictReader((out / "waypoints_wgs84.csv").open()))
+    assert len(world) == len(wgs)
+    enu = georef.enu(np.array([float(r["latitude"]) for r in wgs]),
+                     np.array([float(r["longitude"]) for r in wgs]),
+                     np.array([float(r["altitude"]) for r in wgs]))
+    xyz = np.array([[float(r[k]) for k in "xyz"] for r in world])
+    np.testing.assert_allclose(enu, xyz, atol=2e-3)
+    # gimbal yaw clockwise from north: a view along +x (east) has yaw 90
+    for w, g in zip(world, wgs, strict=True):
+        assert (float(w["yaw_deg"]) + float(g["yaw"]) - 90.0 + 180.0) % 360.0 == \
+            pytest.approx(180.0, abs=1e-3)
+    root = ET.parse(out / "waypoints.kml").getroot()
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    marks = root.findall(".//k:Placemark", ns)
+    assert len(marks) == 1 + sum(r["photo"] == "1" for r in world)
+    coords = root.find(".//k:LineString/k:coordinates", ns).text.split()
+    assert len(coords) == len(world)
+    lon, lat, alt = (float(v) for v in coords[0].split(","))
+    assert lat == pytest.approx(float(wgs[0]["latitude"]), abs=1e-8)
+    assert lon == pytest.approx(float(wgs[0]["longitude"]), abs=1e-8)
+    assert alt == pytest.approx(float(wgs[0]["altitude"]), abs=0.01)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--standoff", "200"], r"--standoff.*meets the rotor"),
+    (["--standoff", "10", "--gsd", "0.5"], r"--gsd.*1\.36 mm/px at a stand-off of 10 m"),
+    (["--standoff", "10", "--tower-clearance", "12"], r"--tower-clearance.*at most the stand-off"),
+])
+def test_plan_refuses(argv: list[str], words: str, fit_dir: Path, camera_yaml: Path,
+                      tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plan"
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), *argv, "--camera", str(camera_yaml),
+                          "--out", str(out))
+    assert_one_line_error(rc, stdout, err, words)
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("remove, words", [
+    ("turbine.yaml", r"turbine\.yaml.*without fitted turbine"),
+    ("keyframes.txt", r"keyframes\.txt.*without fitted poses"),
+])
+def test_plan_refuses_a_fit_folder_without(remove: str, words: str, fit_dir: Path,
+                                           tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    broken = Path(shutil.copytree(fit_dir, tmp_path / "fit"))
+    (broken / remove).unlink()
+    rc, stdout, err = run(capsys, "plan", str(broken), "--standoff", "10", "--out",
+                          str(tmp_path / "plan"))
+    assert_one_line_error(rc, stdout, err, words)
+    assert [p.name for p in tmp_path.iterdir()] == ["fit"]
