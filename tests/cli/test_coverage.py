@@ -158,3 +158,18 @@ def test_damage_boxes_are_located_on_their_blade(fit_dir: Path, flight_copy: Pat
     assert_one_line_error(rc, stdout, err, r"damage\.csv:1.*DJI_0099\.JPG is not the photo of "
                           "any keyframe")
     assert not out2.exists()
+
+
+def test_coverage_of_a_flight_folder_uses_its_own_poses(sim_flight_dir: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]
+                                                       ) -> None:
+    """Before any fit: a flight folder is its own flight (camera.yaml, keyframes.txt and
+    turbine.yaml as measured)."""
+    out = tmp_path / "cov"
+    rc, stdout, err = run(capsys, "coverage", str(sim_flight_dir), "--out", str(out),
+                          "--no-plots")
+    assert rc == 0, err
+    assert "clockwise from 12 o'clock" in stdout
+    rows = list(csv.DictReader((out / "coverage.csv").open()))
+    assert len({r["keyframe"] for r in rows}) >= 6
+    assert json.loads((out / "summary.json").read_text())["flight"] == str(sim_flight_dir)

@@ -118,7 +118,8 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
                     flight_dir: str | os.PathLike[str] | None = None, *,
                     need_camera: bool = True) -> FitOutput:
     """Read a ``fit``/``track`` output folder and its flight's camera (see :class:`FitOutput`;
-    ``need_camera=False``: the flight is optional).
+    ``need_camera=False``: the flight is optional). A flight folder (with ``camera.yaml``)
+    is read as its own flight: its measured poses and ``turbine.yaml``.
 
     Raises:
         InputError: a missing folder, ``keyframes.txt`` or ``turbine.yaml`` (the fitted
@@ -134,6 +135,8 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
     turbine = read_turbine_yaml(fit_dir / TURBINE_FILE)
     geometry = _geometry(fit_dir / "config.yaml")
     flight: Path | None = Path(flight_dir) if flight_dir is not None else None
+    if flight is None and (fit_dir / CAMERA_FILE).is_file():
+        flight = fit_dir  # a flight folder itself: its own poses and turbine.yaml
     if flight is None:
         try:
             flight = _flight_of(fit_dir)
