@@ -27,7 +27,8 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
         "coverage", help=help, description=DESCRIPTION,
         usage="%(prog)s FIT_DIR [--flight FLIGHT_DIR] --out OUT_DIR [--gsd MM] [--damage CSV]",
         formatter_class=DefaultsFormatter)
-    p.add_argument("fit_dir", metavar="FIT_DIR", type=Path, help="output folder of fit or track")
+    p.add_argument("fit_dir", metavar="FIT_DIR", type=Path,
+                   help="output folder of fit or track (or a flight folder: its measured poses)")
     p.add_argument("--flight", type=Path, default=None, metavar="FLIGHT_DIR",
                    help="the flight folder (its camera.yaml); default: the one summary.json names")
     p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
