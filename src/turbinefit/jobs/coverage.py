@@ -283,16 +283,6 @@ def format_damage_csv(boxes: list[DamageBox], timestamps: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
-@dataclass
-class MappingSummary:
-    """A summary that is already the mapping ``summary.json`` holds."""
-
-    data: dict[str, Any]
-
-    def to_dict(self) -> dict[str, Any]:
-        return self.data
-
-
 def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
                     flight_dir: str | os.PathLike[str] | None = None,
                     camera: PinholeCamera | None = None, step: float = 0.5,
@@ -371,5 +361,5 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
-        write_text_atomic(tmp / "summary.json", summary_json(MappingSummary(summary)), fsync=False)
+        write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
     return CoverageReport(cov, surface, out_dir, summary, timings, damage_boxes)
