@@ -64,6 +64,7 @@ from turbinefit.turbine.solid import (
     TurbineSolid,
     blade_profile,
     twist_fraction,
+    unit_vector,
 )
 
 FloatArray = NDArray[np.float64]
@@ -121,10 +122,6 @@ class Blade:
     length: float
     chord: FloatArray
     normal: FloatArray
-
-
-def _unit(v: FloatArray) -> FloatArray:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
 def blade_clock_angles(turbine: TurbineParams) -> FloatArray:
@@ -185,9 +182,9 @@ class TurbineSurface:
         cb, sb = math.cos(sh.blade_pitch), math.sin(sh.blade_pitch)
         blades = []
         for i in range(3):
-            e = _unit(p[3 + i] - self.hub)
-            le0 = _unit(np.cross(e, self.shaft))
-            up = _unit(np.cross(le0, e))  # the shaft's part across the blade (upwind)
+            e = unit_vector(p[3 + i] - self.hub)
+            le0 = unit_vector(np.cross(e, self.shaft))
+            up = unit_vector(np.cross(le0, e))  # the shaft's part across the blade (upwind)
             blades.append(Blade(names[i], i, float(clocks[i]), self.hub.copy(), e,
                                 float(np.linalg.norm(p[3 + i] - self.hub)),
                                 cb * le0 + sb * up, cb * up - sb * le0))
