@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.geometry.se3 import so3_exp
 from turbinefit.inspection.surface import BLADE_SIDES, TOWER, FloatArray, TurbineSurface
 
 #: Turns of the view about the part's axis tried at a station, in order [deg].
@@ -138,6 +137,12 @@ class Plan:
         return [w for w in self.waypoints if w.photo]
 
 
+def _rotate(v: FloatArray, axis: FloatArray, angle: float) -> FloatArray:
+    """v rotated about unit ``axis`` by ``angle`` (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return v * c + np.cross(axis, v) * s + axis * float(axis @ v) * (1.0 - c)
+
+
 class _Clearance:
     """Distances of points from the rotor (blades, spinner) and from the tower and nacelle."""
 
@@ -223,7 +228,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         a, b, cdir, ndir = section
         why = "gimbal"
         for turn in TURNS_DEG:
-            o = so3_exp(axis * math.radians(turn)) @ normal
+            o = _rotate(normal, axis, math.radians(turn))
             ext = math.hypot(a * float(o @ cdir), b * float(o @ ndir))
             c = centre + (d + ext) * o
             view = -o
