@@ -146,7 +146,9 @@ def main() -> None:
     def share(key: str) -> float:
         return 100.0 * sum(bool(r[key]) for r in rows) / n
 
-    print(f"{len(rows)} default 200-keyframe flights (seeds 0-{args.flights - 1}, gps and vio)")
+    if rows:
+        print(f"{len(rows)} default 200-keyframe flights (seeds 0-{args.flights - 1}, gps and "
+              f"vio)")
     for name in ("nothing", "near") if rows else ():
         times = [r[f"init_{name}_s"] for r in rows]
         err = np.array([r[f"init_{name}_errors"] for r in rows])
