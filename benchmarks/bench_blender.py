@@ -30,13 +30,14 @@ delete the folder after changing what a scene holds). 200 views take ~27 min her
 With ``--flights SEED ...``, also whole benchmark flights of ``bench_detect.py`` (200
 keyframes, the flight's own scene): their photos rendered by Blender, the detection
 figures of the flight's photos of either renderer against its ideal heat-maps, and the
-fit from them (``turbinefit fit --from-images --points interp --robust cauchy``) beside
-the fit from the ideal heat-maps (~30 min a flight here).
+fit from them (``turbinefit fit --from-images --preset paper-best --points interp --robust
+cauchy``) beside the fit from the ideal heat-maps, and the fit from them with no options
+(the defaults for photos) and with those and ``--robust-scale 1`` (~30 min a flight here).
 
 Usage::
 
     python benchmarks/bench_blender.py [--n 200] [--flights SEED ...] [--samples 24]
-                                       [--blender PATH] [--model M.onnx]
+                                       [--blender PATH] [--model M.onnx] [--out FILE]
 
 Prints the figures and writes ``benchmarks/results/bench_blender.json`` and
 ``benchmarks/results/blender_examples.png`` (Blender renders, with the detected heat-maps
@@ -61,7 +62,6 @@ from bench_detect import (
     DATA,
     DETECTED_OPTIONS,
     RESULTS,
-    _nulls,
     fit,
     flight_detection,
     print_heldout,
@@ -369,7 +369,9 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
     out: dict[str, Any] = {"seed": seed}
     for name, path in (("turbinefit", src), ("blender", copy)):
         out[name] = {"detection": flight_detection(pool, path),
-                     "fit": fit(path, ["--from-images", *DETECTED_OPTIONS])}
+                     "fit": fit(path, ["--from-images", *DETECTED_OPTIONS]),
+                     "fit_defaults": fit(path, ["--from-images"]),
+                     "fit_defaults_scale1": fit(path, ["--from-images", "--robust-scale", "1"])}
     out["ideal_fit"] = fit(src, DETECTED_OPTIONS)
     print(f"flight {seed}, {' '.join(DETECTED_OPTIONS)}: ideal heat-maps "
           f"{out['ideal_fit']['position_m']:.3f} m; from turbinefit's photos "
@@ -377,6 +379,10 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
           f"{out['blender']['fit']['position_m']:.3f} m (initial "
           f"{out['ideal_fit']['before_position_m']:.3f} m)")
     for name in ("turbinefit", "blender"):
+        print(f"  {name:10s} photos, fit with no options {out[name]['fit_defaults']['position_m']:.3f}"
+              f" m / {out[name]['fit_defaults']['model_point_m']:.3f} m model points; the "
+              f"same with --robust-scale 1 {out[name]['fit_defaults_scale1']['position_m']:.3f} m"
+              f" / {out[name]['fit_defaults_scale1']['model_point_m']:.3f} m")
         d = out[name]["detection"]
         print(f"  {name:10s} photos: tips {d['tips_recall']:.1%} / {d['tips_precision']:.1%}, "
               f"hub / top / base median {d['hub_median_px']:.2f} / {d['tower_top_median_px']:.2f}"
@@ -393,6 +399,7 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=24, help="Cycles samples per pixel")
     ap.add_argument("--blender", default=shutil.which("blender"))
     ap.add_argument("--model", type=Path, default=None)
+    ap.add_argument("--out", type=Path, default=RESULTS / "bench_blender.json")
     args = ap.parse_args()
     if not args.blender:
         sys.exit("bench_blender: Blender not found (Debian: apt-get install blender; or --blender PATH)")
@@ -405,8 +412,8 @@ def main() -> None:
         "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
         "views": views_benchmark(pool, args.n, args.blender, args.samples) if args.n else None,
         "flights": [flight_benchmark(pool, s, args.blender, args.samples) for s in args.flights]}
-    write_json(RESULTS / "bench_blender.json", _nulls(out))
-    print(f"wrote {RESULTS / 'bench_blender.json'}"
+    write_json(args.out, out)
+    print(f"wrote {args.out}"
           + (f" and {RESULTS / 'blender_examples.png'}" if args.n else ""))
 
 

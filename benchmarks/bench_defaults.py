@@ -55,6 +55,9 @@ CANDIDATES: dict[str, dict[str, dict[str, Any]]] = {
                                              "robust_scale": 1.0},
         "corr-normal-cauchy-sigma3": {"lines": "corr", "line_residual": "normal",
                                       "robust": "cauchy", "pixel_sigma": 3.0},
+        "corr-normal-cauchy-sigma2-scale0.5": {"lines": "corr", "line_residual": "normal",
+                                               "robust": "cauchy", "pixel_sigma": 2.0,
+                                               "robust_scale": 0.5},
     },
 }
 
@@ -99,8 +102,15 @@ def main() -> None:
     ap.add_argument("--sources", nargs="+", default=["ideal", "photos"],
                     choices=["ideal", "photos"])
     ap.add_argument("--no-track", action="store_true", help="fits only")
+    ap.add_argument("--candidates", nargs="+", metavar="NAME",
+                    help="only these configurations (names of CANDIDATES)")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_defaults.json")
     args = ap.parse_args()
+    chosen = {src: {n: c for n, c in CANDIDATES[src].items()
+                    if args.candidates is None or n in args.candidates} for src in args.sources}
+    unknown = set(args.candidates or ()) - {n for c in CANDIDATES.values() for n in c}
+    if unknown:
+        ap.error(f"unknown candidates: {', '.join(sorted(unknown))}")
     rows: list[dict[str, Any]] = []
     for seed in args.seeds:
         folder = read_flight_folder(simulate(seed, args.keyframes))
@@ -111,7 +121,7 @@ def main() -> None:
             flight = folder.flight(source.stack(), source.camera)
             load_s = time.perf_counter() - t0
             initial = errors(flight, flight.world_T_cam, flight.turbine)
-            for name, over in CANDIDATES[source_name].items():
+            for name, over in chosen[source_name].items():
                 cfg = dataclasses.replace(FitConfig(), **over)
                 t1 = time.perf_counter()
                 res = fit(flight, cfg)
@@ -134,7 +144,7 @@ def main() -> None:
     for source_name in args.sources:
         print(f"\n{source_name}: mean over {len(args.seeds)} flights")
         table = {}
-        for name in CANDIDATES[source_name]:
+        for name in chosen[source_name]:
             sel = [r for r in rows if r["source"] == source_name and r["config"] == name]
             keys = [k for k in sel[0] if isinstance(sel[0][k], float) and not k.endswith("_s")]
             means = {k: statistics.fmean(r[k] for r in sel) for k in keys}
@@ -145,7 +155,7 @@ def main() -> None:
         summary[source_name] = {"means": table, "best_position": best}
     write_json(args.out, {"machine": {"platform": platform.platform()},
                           "seeds": args.seeds, "keyframes": args.keyframes,
-                          "candidates": {k: CANDIDATES[k] for k in args.sources},
+                          "candidates": chosen,
                           "summary": summary, "rows": rows})
     print(f"\nwrote {args.out}")
 

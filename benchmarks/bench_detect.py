@@ -20,13 +20,15 @@
   at a time (as ``track`` runs); and both without zoom.
 * **Fit from photos**: rendered 200-keyframe flights (``turbinefit simulate --images``),
   fitted from the ideal heat-maps and from the heat-maps detected in the photos
-  (``turbinefit fit --from-images``), each with the default options and with
-  ``--points interp --robust cauchy``; mean position / orientation / model-point errors
-  and their ratios: to the best ideal fit (the defaults) and to the ideal fit with the
-  same options; over all flights, and over those the detected-map options were not
-  chosen on (seeds other than 0-5). For a model with a tip shift (the shipped one), the
-  tuned fit also without it (``--tip-shift 0``): what the calibrated shift gains; for a
-  model with test-time zoom, the tuned fit also without it (``--no-zoom``).
+  (``turbinefit fit --from-images``), each with the paper's options (``--preset
+  paper-best``) and with ``--points interp --robust cauchy`` over them; mean position /
+  orientation / model-point errors and their ratios: to the ideal fit with the paper's
+  options and to the ideal fit with the same options (``fit`` with no options uses the
+  defaults of each source, measured by ``bench_defaults.py``); over all flights, and
+  over those the detected-map options were not chosen on (seeds other than 0-5). For a
+  model with a tip shift (the shipped one), the tuned fit also without it (``--tip-shift
+  0``): what the calibrated shift gains; for a model with test-time zoom, the tuned fit
+  also without it (``--no-zoom``).
 * **Detection on each flight**: the same detection figures as on the held-out renders, per
   flight, of the model's heat-maps of the flight's photos (as ``fit --from-images`` makes
   them, tip shift on) against its ideal heat-maps and ground-truth points, in pixels of
@@ -74,9 +76,12 @@ DATA = HERE / "data"
 RESULTS = HERE / "results"
 BIN = Path(sys.executable).parent / "turbinefit"
 HELDOUT_SEED = 777_777
+#: The paper's configuration, over which this benchmark's options go (``fit`` with no
+#: options uses the defaults of its heat-map source instead: bench_defaults.py).
+PAPER = ["--preset", "paper-best"]
 #: Fit options for detected heat-maps that measured best here (interpolated point cost,
 #: Cauchy loss: the net's peaks carry ~1 px biases that correspondences follow).
-DETECTED_OPTIONS = ["--points", "interp", "--robust", "cauchy"]
+DETECTED_OPTIONS = [*PAPER, "--points", "interp", "--robust", "cauchy"]
 #: Fits of detected maps with DETECTED_OPTIONS and one of the detector's steps turned off.
 VARIANTS = ("detected_tuned_unshifted", "detected_tuned_unzoomed")
 #: The flights DETECTED_OPTIONS were chosen on; the others measure them without that bias.
@@ -301,10 +306,10 @@ def main() -> None:
     spread = print_flight_detection(per_flight)
     rows = []
     for seed, flight in zip(args.seeds, flights, strict=True):
-        ideal = fit(flight, [])
+        ideal = fit(flight, PAPER)
         ideal_tuned = fit(flight, DETECTED_OPTIONS)
         model = ["--model", str(args.model)] if args.model else []
-        detected = fit(flight, ["--from-images", *model])
+        detected = fit(flight, ["--from-images", *model, *PAPER])
         tuned = fit(flight, ["--from-images", *model, *DETECTED_OPTIONS])
         row = {"seed": seed, "ideal": ideal, "ideal_tuned": ideal_tuned,
                "detected": detected, "detected_tuned": tuned}

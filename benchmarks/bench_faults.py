@@ -75,7 +75,7 @@ def heatmap_check_cost(keyframes: int = 200) -> dict[str, float]:
         flight = Path(tmp) / "flight"
         assert main(["simulate", str(flight), "--keyframes", str(keyframes), "--quiet"]) == 0
         folder = read_flight_folder(flight)
-        real = hf.check_heatmap_values
+        real = hf._check_mapped_values
 
         def best() -> float:
             times = []
@@ -86,11 +86,11 @@ def heatmap_check_cost(keyframes: int = 200) -> dict[str, float]:
             return min(times)
 
         with_check = best()
-        hf.check_heatmap_values = lambda maps, fname: None  # type: ignore[assignment]
+        hf._check_mapped_values = lambda *args: None  # type: ignore[assignment]
         try:
             without = best()
         finally:
-            hf.check_heatmap_values = real
+            hf._check_mapped_values = real
         stack = folder.read_heatmaps()
     return {"keyframes": keyframes, "map_size": f"{stack.width}x{stack.height}",
             "open_s": round(without, 4), "open_with_checks_s": round(with_check, 4),

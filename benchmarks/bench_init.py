@@ -10,14 +10,15 @@ Per default 200-keyframe flight (``--flights`` seeds, GPS/IMU and VIO odometry):
   and model-point errors under 0.5 m (target >= 95 %, same accuracy as from turbine.yaml);
 * ``track`` from nothing against ``track`` from turbine.yaml on the first ``--track``
   GPS flights (target: final position error within 10 %);
-* ``--photos N``: N flights with rendered photos, init + fit from the heat-maps the CNN
-  detects (target >= 90 %; slow: rendering and detecting 200 photos each).
+* ``--photos N``: the photo flights of bench_defaults.py (seeds 0 to N-1, 200 keyframes,
+  rendered once into ``benchmarks/data/``), init + fit from the heat-maps the CNN detects
+  (target >= 90 %), and the fit from their turbine.yaml.
 
 Usage::
 
-    python benchmarks/bench_init.py [--flights 10] [--track 3] [--photos 0]
+    python benchmarks/bench_init.py [--flights 10] [--track 3] [--photos 0] [--out FILE]
 
-Prints a table and writes ``benchmarks/results/bench_init.json``.
+Prints a table and writes ``benchmarks/results/bench_init.json`` (or ``--out``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import platform
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -96,14 +99,23 @@ def track_pair(seed: int, root: Path) -> dict[str, Any]:
             "ratio": b.position_error_m / a.position_error_m}
 
 
-def photo_flight(seed: int, root: Path) -> dict[str, Any]:
-    from turbinefit.jobs.fit import fit_folder
-    from turbinefit.jobs.simulate import simulate_folder
+def _link_or_copy(src: str, dst: str) -> None:
+    try:
+        os.link(src, dst)
+    except OSError:  # another file system
+        shutil.copy2(src, dst)
 
-    folder = simulate_folder(root / f"p{seed}", SimConfig(seed=seed), images=True)
-    for sub in (folder / "heatmaps").iterdir():
-        sub.unlink()
-    (folder / "heatmaps").rmdir()
+
+def photo_flight(seed: int, root: Path) -> dict[str, Any]:
+    """init + fit of the photo flight of ``seed``: bench_defaults.py's (simulated once into
+    ``benchmarks/data/``), copied without its heat-maps (photos hard-linked)."""
+    from bench_defaults import simulate
+
+    from turbinefit.jobs.fit import fit_folder
+
+    folder = root / f"p{seed}"
+    shutil.copytree(simulate(seed, 200), folder, copy_function=_link_or_copy,
+                    ignore=shutil.ignore_patterns("heatmaps"))
     y = fit_folder(folder, root / f"p{seed}_yaml", plots=False).summary.after
     assert y is not None
     (folder / "turbine.yaml").unlink()
@@ -125,6 +137,7 @@ def main() -> None:
     ap.add_argument("--flights", type=int, default=10)
     ap.add_argument("--track", type=int, default=3)
     ap.add_argument("--photos", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=RESULTS / "bench_init.json")
     args = ap.parse_args()
     rows = [one_flight(s, odo) for odo in ("gps", "vio") for s in range(args.flights)]
     out: dict[str, Any] = {"machine": platform.platform(), "flights": rows}
@@ -133,7 +146,9 @@ def main() -> None:
     def share(key: str) -> float:
         return 100.0 * sum(bool(r[key]) for r in rows) / n
 
-    print(f"{len(rows)} default 200-keyframe flights (seeds 0-{args.flights - 1}, gps and vio)")
+    if rows:
+        print(f"{len(rows)} default 200-keyframe flights (seeds 0-{args.flights - 1}, gps and "
+              f"vio)")
     for name in ("nothing", "near") if rows else ():
         times = [r[f"init_{name}_s"] for r in rows]
         err = np.array([r[f"init_{name}_errors"] for r in rows])
@@ -162,7 +177,7 @@ def main() -> None:
               f"{len(photos)}, from turbine.yaml {100 * np.mean([p['yaml_ok'] for p in photos]):.1f}"
               " %; position init + fit / from turbine.yaml: " + ", ".join(
                   f"{p['position_m']:.3f} / {p['yaml_position_m']:.3f}" for p in photos))
-    write_json(RESULTS / "bench_init.json", out)
+    write_json(args.out, out)
 
 
 if __name__ == "__main__":

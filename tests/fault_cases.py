@@ -359,8 +359,9 @@ def _cases() -> list[Case]:
     cov = ("coverage", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
     add("coverage-no-turbine", cmd(*cov), unlink("turbine.yaml"), TURB, r"without fitted turbine")
     add("coverage-no-poses", cmd(*cov), unlink("keyframes.txt"), KF, r"without fitted poses")
-    add("coverage-no-summary", cmd("coverage", "{w}/flight", "--out", "{w}/out"), None,
-        r"summary\.json", r"--flight")
+    # a folder with poses and a turbine but neither a camera nor a summary naming its flight
+    add("coverage-no-summary", cmd("coverage", "{w}/flight", "--out", "{w}/out"),
+        unlink("camera.yaml"), r"summary\.json", r"--flight")
     add("coverage-fifo-turbine", cmd(*cov), fifo("turbine.yaml"), TURB, "named pipe", hang=True)
     plan = ("plan", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
     add("plan-no-turbine", cmd(*plan, "--standoff", "10"), unlink("turbine.yaml"), TURB,

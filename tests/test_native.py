@@ -120,3 +120,20 @@ def test_non_finite_heatmap_is_reported_with_its_keyframe(monkeypatch, flight):
         with pytest.raises(NonFiniteHeatmapError) as info:
             prob2.linearize(poses, theta, prob2.find_correspondences(poses, theta))
         assert info.value.keyframe == 4
+
+
+@pytest.mark.parametrize("copy", ["pickle", "deepcopy"])
+def test_copied_stack_points_at_its_own_arrays(flight, copy):
+    """A pickled or deep-copied stack (a flight sent to a worker process) hands the
+    kernels the addresses of its own arrays, not those of the original's (which would
+    read freed memory in another process)."""
+    import copy as copy_module
+    import pickle
+
+    stack = flight.heatmaps
+    dup = pickle.loads(pickle.dumps(stack)) if copy == "pickle" else copy_module.deepcopy(stack)
+    assert dup.pointers() is not None
+    assert set(dup.pointers()).isdisjoint(stack.pointers())
+    assert list(dup.pointers()) == [dup[k].ctypes.data for k in range(len(dup))]
+    for k in range(len(dup)):
+        np.testing.assert_array_equal(dup[k], stack[k])

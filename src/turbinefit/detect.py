@@ -227,9 +227,9 @@ class HeatmapDetector:
         input_scale: run the net at this multiple of its input size (test-time scale:
             photos resized to ``input_scale`` times ``input_width``, maps that many times
             larger, :attr:`info` changed to match; None = 1). The shipped net was trained
-            at 320 px: at 2 (640 px) fits from simulated 1280 x 960 photos gain within
-            their noise (``benchmarks/bench_resolution.py --photos``) and real photos are
-            read much worse (``benchmarks/bench_real.py --input-scale 2``;
+            at 320 px: at 2 (640 px) fits from simulated 1280 x 960 photos gain nothing
+            (``benchmarks/bench_resolution.py --photos``) and real photos are read much
+            worse (``benchmarks/bench_real.py --input-scale 2``;
             docs/benchmarks.md).
 
     Raises:

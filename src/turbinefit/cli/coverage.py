@@ -15,7 +15,9 @@ tower it shows, the span in view, the side seen (leading edge, pressure side,
 trailing edge, suction side; tower: front, right, back, left), the distance and
 the ground sampling distance (mm per pixel) with the photos' camera. Writes
 coverage.csv, sides.csv (best resolution per side and span), summary.json and
-coverage.png. Details: docs/inspection.md."""
+coverage.png; with --damage, damage.csv: where each box drawn on a photo (a
+damage mark) lies on the turbine - part, side, span range and distance.
+Details: docs/inspection.md."""
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
@@ -23,9 +25,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 
     p: argparse.ArgumentParser = sub.add_parser(
         "coverage", help=help, description=DESCRIPTION,
-        usage="%(prog)s FIT_DIR [--flight FLIGHT_DIR] --out OUT_DIR [--gsd MM]",
+        usage="%(prog)s FIT_DIR [--flight FLIGHT_DIR] --out OUT_DIR [--gsd MM] [--damage CSV]",
         formatter_class=DefaultsFormatter)
-    p.add_argument("fit_dir", metavar="FIT_DIR", type=Path, help="output folder of fit or track")
+    p.add_argument("fit_dir", metavar="FIT_DIR", type=Path,
+                   help="output folder of fit or track (or a flight folder: its measured poses)")
     p.add_argument("--flight", type=Path, default=None, metavar="FLIGHT_DIR",
                    help="the flight folder (its camera.yaml); default: the one summary.json names")
     p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
@@ -39,6 +42,12 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help="blade pitch [deg] if known (0: flat in the rotor plane)")
     p.add_argument("--blade-twist", type=number, default=0.0, metavar="DEG",
                    help="blade twist at the root [deg] if known (the pitch's sense)")
+    p.add_argument("--damage", type=Path, default=None, metavar="BOXES_CSV",
+                   help="boxes drawn on photos (filename,width,height,class,xmin,ymin,xmax,ymax): "
+                   "damage.csv says which part, side and span each covers")
+    p.add_argument("--damage-photos", type=Path, default=None, metavar="DIR",
+                   help="the folder of the photos --damage names (default: the flight's "
+                   "images/; originals that import dji linked are found too)")
     p.add_argument("--no-plots", action="store_true", help="skip coverage.png")
     p.add_argument("--overwrite", action="store_true", help="replace OUT_DIR's outputs")
     p.add_argument("--quiet", action="store_true", help="print nothing")
@@ -62,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
                              step=args.step,
                              max_gsd_mm=args.gsd, blade_pitch=math.radians(args.blade_pitch),
                              blade_twist=math.radians(args.blade_twist),
+                             damage=args.damage, damage_photos=args.damage_photos,
                              plots=not args.no_plots, overwrite=args.overwrite)
     if args.quiet:
         return 0
@@ -76,5 +86,12 @@ def run(args: argparse.Namespace) -> int:
             best = c["median_best_gsd_mm_px"]  # NaN: never seen
             print(f"{part:<10}{side:<16}{100 * c['seen']:6.1f}%{100 * c['covered']:13.1f}%"
                   + (f"{best:12.2f}" if math.isfinite(best) else f"{'-':>12}"))
+    for d in report.damage or []:
+        loc = d.location
+        where = ("not on the turbine" if loc.part is None else
+                 f"{loc.part} {loc.side or ''} "
+                 + (f"{loc.span_from_m:.1f}-{loc.span_to_m:.1f} m" if loc.span_from_m is not None
+                    else "") + f" ({100 * loc.on_part:.0f} % of the box)")
+        print(f"damage {d.photo} {d.label}: {where}")
     print(f"wrote {args.out}")
     return 0

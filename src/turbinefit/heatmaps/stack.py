@@ -60,6 +60,11 @@ class HeatmapStack:
         if all(a.dtype == np.float32 and a.flags.c_contiguous for a in arrays):
             self._pointers = np.array([a.ctypes.data for a in arrays], dtype=np.uint64)
 
+    def __reduce__(self) -> tuple[type[HeatmapStack], tuple[object]]:
+        """Pickled and copied stacks are built anew from their arrays: the addresses of
+        :meth:`pointers` are those of this process's arrays only."""
+        return HeatmapStack, (self._stacked if self._stacked is not None else self._list,)
+
     def pointers(self) -> NDArray[np.uint64] | None:
         """Address of each keyframe's float32 (7, H, W) data, for the compiled kernels; None
         unless every keyframe is C-contiguous float32. Valid while this stack lives."""

@@ -11,9 +11,11 @@ from turbinefit.inspection.coverage import Coverage as Coverage
 from turbinefit.inspection.coverage import flight_coverage as flight_coverage
 from turbinefit.inspection.plan import PlanOptions as PlanOptions
 from turbinefit.inspection.plan import plan_path as plan_path
+from turbinefit.inspection.surface import BoxLocation as BoxLocation
 from turbinefit.inspection.surface import PixelHit as PixelHit
 from turbinefit.inspection.surface import SurfaceShape as SurfaceShape
 from turbinefit.inspection.surface import TurbineSurface as TurbineSurface
 from turbinefit.inspection.surface import blade_names as blade_names
+from turbinefit.inspection.surface import locate_box as locate_box
 from turbinefit.inspection.surface import lookup_pixel as lookup_pixel
 from turbinefit.inspection.surface import lookup_pixels as lookup_pixels

@@ -64,6 +64,7 @@ from turbinefit.turbine.solid import (
     TurbineSolid,
     blade_profile,
     twist_fraction,
+    unit_vector,
 )
 
 FloatArray = NDArray[np.float64]
@@ -121,10 +122,6 @@ class Blade:
     length: float
     chord: FloatArray
     normal: FloatArray
-
-
-def _unit(v: FloatArray) -> FloatArray:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
 def blade_clock_angles(turbine: TurbineParams) -> FloatArray:
@@ -185,9 +182,9 @@ class TurbineSurface:
         cb, sb = math.cos(sh.blade_pitch), math.sin(sh.blade_pitch)
         blades = []
         for i in range(3):
-            e = _unit(p[3 + i] - self.hub)
-            le0 = _unit(np.cross(e, self.shaft))
-            up = _unit(np.cross(le0, e))  # the shaft's part across the blade (upwind)
+            e = unit_vector(p[3 + i] - self.hub)
+            le0 = unit_vector(np.cross(e, self.shaft))
+            up = unit_vector(np.cross(le0, e))  # the shaft's part across the blade (upwind)
             blades.append(Blade(names[i], i, float(clocks[i]), self.hub.copy(), e,
                                 float(np.linalg.norm(p[3 + i] - self.hub)),
                                 cb * le0 + sb * up, cb * up - sb * le0))
@@ -405,3 +402,64 @@ def lookup_pixels(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: S
     origin = world_T_cam.translation
     hits = surface.cast_rays(origin[None, :], rays, 1.0 / math.sqrt(camera.fx * camera.fy))
     return hits, origin + hits.distance[:, None] * rays
+
+
+@dataclass(frozen=True)
+class BoxLocation:
+    """Where a box drawn on a photo (a damage mark) lies on the turbine (:func:`locate_box`).
+
+    Attributes:
+        part: the part most of the box's sample pixels show (``blade_A`` ... ``hub``), or
+            None if none shows the turbine.
+        side: the side or face most of that part's samples show (None on nacelle and hub).
+        span_m: median span of that part's samples [m from the hub centre, or above the
+            ground]; span_from_m, span_to_m: their least and greatest (None on nacelle,
+            hub).
+        distance_m: median camera distance of those samples [m].
+        on_part: fraction of the box's samples on that part (the rest: other parts or
+            background).
+    """
+
+    part: str | None
+    side: str | None
+    span_m: float | None
+    span_from_m: float | None
+    span_to_m: float | None
+    distance_m: float | None
+    on_part: float
+
+
+#: Sample pixels a side of a box in :func:`locate_box` (at most; one per pixel).
+BOX_SAMPLES = 9
+
+
+def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
+               box: tuple[float, float, float, float]) -> BoxLocation:
+    """The part, side and span range a box (left, top, right, bottom; pixel edges, as
+    labelling tools draw them) on the photo taken from ``world_T_cam`` covers: a grid of up
+    to :data:`BOX_SAMPLES` x :data:`BOX_SAMPLES` pixel centres inside it looked up
+    (:func:`lookup_pixels`), the part most of them hit, and that part's samples' side (the
+    most frequent), median span, span range and distance."""
+    x0, y0, x1, y1 = box
+    nu = max(1, min(BOX_SAMPLES, math.ceil(x1 - x0)))
+    nv = max(1, min(BOX_SAMPLES, math.ceil(y1 - y0)))
+    us = x0 + (np.arange(nu) + 0.5) * (x1 - x0) / nu - 0.5  # pixel centres: edges - 0.5
+    vs = y0 + (np.arange(nv) + 0.5) * (y1 - y0) / nv - 0.5
+    uv = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2)
+    hits, _ = lookup_pixels(surface, camera, world_T_cam, uv)
+    seen = hits.part[hits.part >= 0]
+    if seen.size == 0:
+        return BoxLocation(None, None, None, None, None, None, 0.0)
+    k = int(np.bincount(seen).argmax())
+    on = hits.part == k
+    side = None
+    if k <= TOWER:
+        names = BLADE_SIDES if k < TOWER else TOWER_FACES
+        side = names[int(np.bincount(hits.side[on]).argmax())]
+    spans = hits.span[on]
+    has_span = k <= TOWER
+    return BoxLocation(PARTS[k], side,
+                       float(np.median(spans)) if has_span else None,
+                       float(spans.min()) if has_span else None,
+                       float(spans.max()) if has_span else None,
+                       float(np.median(hits.distance[on])), float(on.mean()))

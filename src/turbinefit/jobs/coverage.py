@@ -6,6 +6,7 @@ poses, turbine and shape geometry) and the camera of the flight it came from
 (``summary.json`` names it, or ``flight_dir``); :func:`coverage_folder` writes
 ``coverage.csv`` (one row per keyframe and part in view), ``sides.csv`` (the best
 resolution reached on each side, span by span), ``summary.json`` and ``coverage.png``,
+with a damage CSV ``damage.csv`` (where each box drawn on a photo lies on the turbine),
 atomically (:mod:`turbinefit.jobs.outputs`).
 """
 
@@ -29,10 +30,17 @@ from turbinefit.inspection.coverage import (
     flight_coverage,
     side_names,
 )
-from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, name_margin_deg
+from turbinefit.inspection.surface import (
+    PARTS,
+    BoxLocation,
+    SurfaceShape,
+    TurbineSurface,
+    locate_box,
+    name_margin_deg,
+)
 from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.io.camera_yaml import read_camera_yaml
-from turbinefit.io.flight_folder import CAMERA_FILE, KEYFRAMES_FILE, TURBINE_FILE
+from turbinefit.io.flight_folder import CAMERA_FILE, IMAGE_DIR, KEYFRAMES_FILE, TURBINE_FILE
 from turbinefit.io.georef import Georef, read_flight_georef
 from turbinefit.io.tum import read_tum_lines
 from turbinefit.io.turbine_yaml import read_turbine_yaml
@@ -41,7 +49,12 @@ from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, sum
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
 COVERAGE_OUTPUTS = OutputKind("coverage", frozenset({
-    "coverage.csv", "sides.csv", "summary.json", "coverage.png"}))
+    "coverage.csv", "sides.csv", "summary.json", "coverage.png", "damage.csv"}))
+
+#: Columns of ``damage.csv`` (:func:`format_damage_csv`).
+DAMAGE_COLUMNS = ("photo", "timestamp", "keyframe", "class", "xmin", "ymin", "xmax", "ymax",
+                  "part", "side", "span_m", "span_from_m", "span_to_m", "distance_m",
+                  "on_part")
 
 
 @dataclass
@@ -105,7 +118,8 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
                     flight_dir: str | os.PathLike[str] | None = None, *,
                     need_camera: bool = True) -> FitOutput:
     """Read a ``fit``/``track`` output folder and its flight's camera (see :class:`FitOutput`;
-    ``need_camera=False``: the flight is optional).
+    ``need_camera=False``: the flight is optional). A flight folder (with ``camera.yaml``)
+    is read as its own flight: its measured poses and ``turbine.yaml``.
 
     Raises:
         InputError: a missing folder, ``keyframes.txt`` or ``turbine.yaml`` (the fitted
@@ -121,6 +135,8 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
     turbine = read_turbine_yaml(fit_dir / TURBINE_FILE)
     geometry = _geometry(fit_dir / "config.yaml")
     flight: Path | None = Path(flight_dir) if flight_dir is not None else None
+    if flight is None and (fit_dir / CAMERA_FILE).is_file():
+        flight = fit_dir  # a flight folder itself: its own poses and turbine.yaml
     if flight is None:
         try:
             flight = _flight_of(fit_dir)
@@ -138,13 +154,14 @@ def read_fit_output(fit_dir: str | os.PathLike[str],
 @dataclass
 class CoverageReport:
     """What :func:`coverage_folder` did: the coverage, the surface it was computed on,
-    the summary written and timings [s]."""
+    the summary written, timings [s] and, with a damage CSV, where each box lies."""
 
     coverage: Coverage
     surface: TurbineSurface
     out_dir: Path
     summary: dict[str, Any]
     timings: dict[str, float] = field(default_factory=dict)
+    damage: list[DamageBox] | None = None
 
 
 def format_coverage_csv(coverage: Coverage, timestamps: Any) -> str:
@@ -171,21 +188,107 @@ def format_sides_csv(coverage: Coverage, timestamps: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
-@dataclass
-class MappingSummary:
-    """A summary that is already the mapping ``summary.json`` holds."""
+Box = tuple[float, float, float, float]
 
-    data: dict[str, Any]
 
-    def to_dict(self) -> dict[str, Any]:
-        return self.data
+@dataclass(frozen=True)
+class DamageBox:
+    """One box of a damage CSV on a keyframe's photo, and where it lies on the turbine.
+
+    Attributes:
+        photo: the photo's file name as the CSV gives it; keyframe: its keyframe index.
+        label: the box's class; box: (left, top, right, bottom) in the CSV's pixels.
+        location: :func:`~turbinefit.inspection.surface.locate_box` of the box scaled to
+            the camera's pixels.
+    """
+
+    photo: str
+    keyframe: int
+    label: str
+    box: Box
+    location: BoxLocation
+
+
+def _same_photo(a: Path, b: Path) -> bool:
+    """Whether two photo files are one (a hard link, as ``import dji`` makes) or hold the
+    same bytes (a copy)."""
+    try:
+        if os.path.samefile(a, b):
+            return True
+        if a.stat().st_size != b.stat().st_size:
+            return False
+        return a.read_bytes() == b.read_bytes()
+    except OSError:
+        return False
+
+
+def read_damage_boxes(path: Path, photos_dir: Path, fit: FitOutput, camera: PinholeCamera
+                      ) -> list[tuple[str, int, str, Box, Box]]:
+    """The boxes of a damage CSV (:func:`turbinefit.io.regions.read_box_csv`; photos in
+    ``photos_dir``) as (photo, keyframe, class, box, the box in the camera's pixels). A photo is a
+    keyframe's if its name is the keyframe's timestamp (``images/<t>.jpg`` of a flight
+    folder) or if it is the same file as that keyframe's photo (the originals ``import dji``
+    linked); boxes drawn on the photo at another size of the same aspect are scaled.
+
+    Raises:
+        InputError: naming the CSV row of a photo that is no keyframe of the fit, or whose
+            size is not the camera's aspect (and the errors of ``read_box_csv``).
+    """
+    from turbinefit.io.heatmap_files import keyframe_stem
+    from turbinefit.io.images import IMAGE_SUFFIXES
+    from turbinefit.io.regions import read_box_csv
+
+    labels = read_box_csv(path, photos_dir)
+    stems = {keyframe_stem(float(t)): k for k, t in enumerate(fit.timestamps)}
+    keyframe_photos: list[tuple[int, Path]] | None = None
+    out = []
+    for lab in labels:
+        k = stems.get(lab.path.stem)
+        if k is None:
+            if keyframe_photos is None:  # those of the flight folder's images/ that exist
+                img = None if fit.flight_dir is None else fit.flight_dir / IMAGE_DIR
+                keyframe_photos = [] if img is None else [
+                    (i, img / (stem + suffix)) for stem, i in stems.items()
+                    for suffix in IMAGE_SUFFIXES if (img / (stem + suffix)).is_file()]
+            k = next((i for i, q in keyframe_photos if _same_photo(lab.path, q)), None)
+        if k is None:
+            raise InputError(f"photo {lab.path.name} is not the photo of any keyframe of the fit",
+                             path=lab.where)
+        assert lab.size is not None
+        w, h = lab.size
+        sx, sy = camera.width / w, camera.height / h
+        if abs(sx / sy - 1.0) > 0.01:
+            raise InputError(f"photo {lab.path.name} is {w}x{h}, not the shape of the camera's "
+                             f"{camera.width}x{camera.height}", path=lab.where)
+        for cls, (x0, y0, x1, y1) in lab.boxes:
+            out.append((lab.path.name, k, cls, (x0, y0, x1, y1),
+                        (x0 * sx, y0 * sy, x1 * sx, y1 * sy)))
+    return out
+
+
+def format_damage_csv(boxes: list[DamageBox], timestamps: Any) -> str:
+    """The text of ``damage.csv``: one row per box (:data:`DAMAGE_COLUMNS`; the box in the
+    CSV's pixels; empty cells where the box shows no part, side or span)."""
+    def num(v: float | None, fmt: str) -> str:
+        return "" if v is None else format(v, fmt)
+
+    lines = [",".join(DAMAGE_COLUMNS)]
+    for d in boxes:
+        loc = d.location
+        lines.append(",".join([
+            d.photo, f"{float(timestamps[d.keyframe]):.6f}", str(d.keyframe), d.label,
+            *(f"{v:g}" for v in d.box), loc.part or "", loc.side or "",
+            num(loc.span_m, ".2f"), num(loc.span_from_m, ".2f"), num(loc.span_to_m, ".2f"),
+            num(loc.distance_m, ".2f"), f"{loc.on_part:.2f}"]))
+    return "\n".join(lines) + "\n"
 
 
 def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
                     flight_dir: str | os.PathLike[str] | None = None,
                     camera: PinholeCamera | None = None, step: float = 0.5,
                     max_gsd_mm: float = 2.0, blade_pitch: float = 0.0,
-                    blade_twist: float = 0.0, plots: bool = True,
+                    blade_twist: float = 0.0, damage: str | os.PathLike[str] | None = None,
+                    damage_photos: str | os.PathLike[str] | None = None, plots: bool = True,
                     overwrite: bool = False) -> CoverageReport:
     """What each keyframe of the fit in ``fit_dir`` shows (its fitted poses and turbine, the
     photos' ``camera``, by default that of ``flight_dir`` or of the flight its
@@ -194,6 +297,10 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     fraction of the span seen, and seen at ``max_gsd_mm`` mm/px or finer) and, unless
     ``plots=False``, ``coverage.png``. Parts are sampled every ``step`` m; blades have pitch
     ``blade_pitch`` and root twist ``blade_twist`` [rad] (0: flat in the rotor plane).
+    With ``damage`` (a box CSV, :mod:`turbinefit.io.regions`, of photos in
+    ``damage_photos``, default the flight's ``images/``), ``damage.csv`` says where each
+    box lies: part, side, span and distance (:func:`read_damage_boxes`,
+    :func:`~turbinefit.inspection.surface.locate_box`).
 
     Raises:
         InputError: bad input or a bad ``out_dir`` (checked first); nothing is written.
@@ -204,7 +311,7 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         raise InputError(f"must be a positive number of metres, got {step}", field="--step")
     if not (max_gsd_mm > 0 and math.isfinite(max_gsd_mm)):
         raise InputError(f"must be a positive number, got {max_gsd_mm}", field="--gsd")
-    inputs = [fit_dir] + ([] if flight_dir is None else [Path(flight_dir)])
+    inputs = [fit_dir] + [Path(p) for p in (flight_dir, damage, damage_photos) if p is not None]
     COVERAGE_OUTPUTS.check(out_dir, inputs, overwrite)
     fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
     if fit.flight_dir is not None:
@@ -213,6 +320,17 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     assert cam is not None
     surface = TurbineSurface(fit.turbine, fit.geometry,
                              SurfaceShape(blade_pitch=blade_pitch, blade_twist=blade_twist))
+    damage_boxes: list[DamageBox] | None = None
+    if damage is not None:
+        if damage_photos is None and fit.flight_dir is None:
+            raise InputError("needs the flight folder (its images/) or the photos' folder",
+                             field="--damage")
+        photos = Path(damage_photos) if damage_photos is not None else \
+            fit.flight_dir / IMAGE_DIR  # type: ignore[operator]
+        damage_boxes = [DamageBox(name, k, cls, box, locate_box(surface, cam,
+                                                                fit.world_T_cam[k], cam_box))
+                        for name, k, cls, box, cam_box in read_damage_boxes(
+                            Path(damage), photos, fit, cam)]
     t1 = time.perf_counter()
     cov = flight_coverage(surface, cam, fit.world_T_cam, step)
     timings = {"load": t1 - t0, "coverage": time.perf_counter() - t1}
@@ -225,12 +343,16 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
                              "clock_deg": round(bl.clock_deg, 3)} for bl in surface.blades},
         "name_margin_deg": round(name_margin_deg(surface.turbine), 3),
         "coverage": cov.summary(max_gsd_mm), "timing_s": timings,
+        "damage_boxes": None if damage_boxes is None else len(damage_boxes),
     }
     with COVERAGE_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_text_atomic(tmp / "coverage.csv", format_coverage_csv(cov, fit.timestamps),
                           fsync=False)
         write_text_atomic(tmp / "sides.csv", format_sides_csv(cov, fit.timestamps),
                           fsync=False)
+        if damage_boxes is not None:
+            write_text_atomic(tmp / "damage.csv", format_damage_csv(damage_boxes, fit.timestamps),
+                              fsync=False)
         if plots:
             from turbinefit.plots.inspection import plot_coverage
 
@@ -239,5 +361,5 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
-        write_text_atomic(tmp / "summary.json", summary_json(MappingSummary(summary)), fsync=False)
-    return CoverageReport(cov, surface, out_dir, summary, timings)
+        write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
+    return CoverageReport(cov, surface, out_dir, summary, timings, damage_boxes)

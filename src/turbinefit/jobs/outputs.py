@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -125,10 +125,11 @@ def finite_json(obj: Any) -> Any:
     return obj
 
 
-def summary_json(summary: Summary) -> str:
-    """The text of ``summary.json``: strict JSON (no NaN or Infinity: undefined values are
-    null)."""
-    return json.dumps(finite_json(summary.to_dict()), indent=2, allow_nan=False) + "\n"
+def summary_json(summary: Summary | Mapping[str, Any]) -> str:
+    """The text of ``summary.json`` of a job's summary, or of the mapping it already is:
+    strict JSON (no NaN or Infinity: undefined values are null)."""
+    data = summary if isinstance(summary, Mapping) else summary.to_dict()
+    return json.dumps(finite_json(dict(data)), indent=2, allow_nan=False) + "\n"
 
 
 FIT_OUTPUTS = OutputKind("fit", frozenset({

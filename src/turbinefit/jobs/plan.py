@@ -34,7 +34,7 @@ from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.georef import Georef, gimbal_from_world_T_cam
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
-from turbinefit.jobs.coverage import MappingSummary, read_fit_output
+from turbinefit.jobs.coverage import read_fit_output
 from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, summary_json
 
 PLAN_OUTPUTS = OutputKind("plan", frozenset({
@@ -204,6 +204,5 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
-        write_text_atomic(tmp / "summary.json", summary_json(MappingSummary(summary)),
-                          fsync=False)
+        write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
     return PlanReport(plan, out_dir, summary, timings)

@@ -43,11 +43,12 @@ FIT_DETECT_WIDTH = 320
 FILE_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
     "lines": "corr", "line_residual": "normal", "robust": "cauchy"})
 #: The fit options that measured best on heat-maps the CNN detects in photos: as for files,
-#: with correspondences trusted less (2 px) and a tighter Cauchy loss (scale 1), since the
-#: net's peaks carry errors and biases of about a pixel (``benchmarks/bench_defaults.py``).
+#: with correspondences trusted less (2 px) and a tight Cauchy loss (scale 0.5: it bends at
+#: 1 px), since the net's peaks carry errors and biases of about a pixel and some of its
+#: answers are wrong altogether (``benchmarks/bench_defaults.py``).
 PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
     "lines": "corr", "line_residual": "normal", "robust": "cauchy", "pixel_sigma": 2.0,
-    "robust_scale": 1.0})
+    "robust_scale": 0.5})
 
 
 def _describe(options: Mapping[str, Any]) -> str:

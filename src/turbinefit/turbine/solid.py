@@ -113,7 +113,7 @@ class TurbineSolid:
     def chord_axis(self, blade: int) -> FloatArray:
         """Unit chord direction of blade ``blade`` (0, 1, 2) at zero pitch and twist: in
         the rotor plane, perpendicular to the blade (``shaft x blade``)."""
-        e = _unit(self.tips[blade] - self.hub)
+        e = unit_vector(self.tips[blade] - self.hub)
         c0 = np.cross(self.shaft, e)
         nc = float(np.linalg.norm(c0))
         return c0 / nc if nc > 1e-9 else _perp(e)
@@ -205,7 +205,7 @@ def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0) -> list[SolidPart]
     half_chord, half_thick = blade_profile(u, solid.b)
     beta = blade_twist(u, blade_pitch).astype(np.float64)[:, None]
     for i, tip in enumerate(solid.tips):
-        e = _unit(tip - solid.hub)
+        e = unit_vector(tip - solid.hub)
         c0 = solid.chord_axis(i)
         chord = np.cos(beta) * c0 + np.sin(beta) * np.cross(e, c0)
         thick = np.cross(e, chord)  # chord x thick = e: faces outward
@@ -216,14 +216,15 @@ def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0) -> list[SolidPart]
     return parts
 
 
-def _unit(v: FloatArray) -> FloatArray:
+def unit_vector(v: FloatArray) -> FloatArray:
+    """``v`` (3,) scaled to length 1 (a zero vector stays zero)."""
     return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
 def _perp(e: FloatArray) -> FloatArray:
     """A unit vector perpendicular to unit e."""
     a = np.array([0.0, 0.0, 1.0]) if abs(e[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    return _unit(np.cross(e, a))
+    return unit_vector(np.cross(e, a))
 
 
 def _closed_tube(centres: FloatArray, ax: FloatArray, ay: FloatArray, rx: FloatArray,
