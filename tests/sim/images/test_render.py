@@ -245,3 +245,27 @@ def test_labels_follow_the_depth_buffer(scene: Scene) -> None:
     np.testing.assert_allclose(lab.span[tower], z, atol=0.05)
     assert np.isfinite(lab.side_angle[blades]).all() and np.isnan(lab.side_angle[tower]).all()
     assert (lab.span[blades] >= 0).all() and (lab.span[blades] <= TURBINE.blade_length).all()
+
+
+def test_flight_scenes_leave_out_the_training_renders_details() -> None:
+    """Wear, dirt, seams, blade marks and clutter are drawn in training renders only: a
+    flight's scene is the training scene of its seed without them, and its blades render
+    as they do without marks (the flights' photos stay those the fits were measured on)."""
+    from turbinefit.sim.images.clutter import NO_CLUTTER
+    from turbinefit.sim.images.scene import flight_scene
+
+    th = TURBINE.to_vector()
+    fl = flight_scene(th, 5)
+    assert (fl.wear, fl.dirt, fl.tower_section, fl.clutter, fl.blade_marks) == (
+        0.0, 0.0, 0.0, NO_CLUTTER, False)
+    trained = [sample_scene(np.random.default_rng(s), TURBINE) for s in range(20)]
+    assert all(s.blade_marks for s in trained) and any(s.clutter != NO_CLUTTER for s in trained)
+    # a close view of a blade's marks: they change the picture only where enabled
+    cam = PinholeCamera(80, 60, 60.0, 60.0, 39.5, 29.5)
+    tip = model_points(th)[0][3]
+    pose = _look_at(tip + np.array([0.0, -12.0, 0.0]), tip)
+    plain = render_image(cam, pose, th, fl, np.random.default_rng(0))
+    again = render_image(cam, pose, th, replace(fl, blade_marks=False), np.random.default_rng(0))
+    marked = render_image(cam, pose, th, replace(fl, blade_marks=True), np.random.default_rng(0))
+    np.testing.assert_array_equal(plain, again)
+    assert np.abs(plain.astype(int) - marked.astype(int)).max() > 0

@@ -165,12 +165,13 @@ class Painter:
         leading-edge erosion on the outer half (speckled grey pits,
         :attr:`Scene.wear`), dirt streaks along the span (:attr:`Scene.dirt`), the shell's
         bond lines along both edges, and two lightning receptors (dark metal discs) near
-        the tip. They matter in close-ups and average out far away."""
+        the tip (:attr:`Scene.blade_marks`). They matter in close-ups and average out far
+        away."""
         sc, salt = self.sc, self.sc.seed % 100_003
         out = albedo
-        # bond lines along both edges
-        seam = (np.abs(chord) > 0.93) & (np.abs(chord) < 0.965)
-        out = out * np.where(seam, np.float32(0.86), np.float32(1.0))[None]
+        if sc.blade_marks:  # bond lines along both edges
+            seam = (np.abs(chord) > 0.93) & (np.abs(chord) < 0.965)
+            out = out * np.where(seam, np.float32(0.86), np.float32(1.0))[None]
         if sc.dirt > 0:
             h = cell_hash(np.floor(span * 0.4).astype(np.int32),
                           np.floor((chord + 1.0) * 9.0).astype(np.int32), salt)
@@ -182,7 +183,7 @@ class Painter:
                             np.floor(chord * 40.0).astype(np.int32), salt + 1)
             m = (pit < np.float32(sc.wear) * outer * edge * 1.4) & (chord > 0.4)
             out = blend(out, column((0.5, 0.49, 0.46)), m.astype(np.float32) * 0.5)
-        for r_m in (0.4, 2.5):  # receptors, on both faces near the chord's middle
+        for r_m in (0.4, 2.5) if sc.blade_marks else ():  # receptors, both faces
             d2 = (span - (L - np.float32(r_m))) ** 2 + chord_m * chord_m
             out = blend(out, column((0.28, 0.28, 0.3)), (d2 < 0.012).astype(np.float32))
         return out

@@ -9,7 +9,7 @@ the one of a simulated flight's seed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -108,6 +108,10 @@ class Scene:
         tower_section: height of the tower's sections [m] (flange seams between them).
         clutter: line-like things on the ground and in the air (power lines, pylons,
             fences, buildings; :class:`~turbinefit.sim.images.clutter.Clutter`).
+        blade_marks: the blades' bond lines and lightning receptors.
+
+    Wear, dirt, tower seams, blade marks and clutter are drawn in the CNN's training
+    renders (:func:`sample_scene`), not in simulated flights (:func:`flight_scene`).
     """
 
     seed: int
@@ -151,6 +155,7 @@ class Scene:
     dirt: float = 0.0
     tower_section: float = 0.0
     clutter: Clutter = NO_CLUTTER
+    blade_marks: bool = False
 
     def __post_init__(self) -> None:
         if self.terrain not in TERRAINS:
@@ -401,7 +406,7 @@ def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
         paint=paint, base_band=band, door=bool(rng.uniform() < 0.7), tip_bands=tip_bands,
         tip_colour=_jitter(rng, (0.75, 0.12, 0.1), 0.1), blade_pitch=float(pitch),
         nacelle=nacelle, neighbours=neighbours, effects=effects,
-        wear=wear, dirt=dirt, tower_section=section, clutter=clutter,
+        wear=wear, dirt=dirt, tower_section=section, clutter=clutter, blade_marks=True,
     )
     scene_assets(scene)  # generate the noise tiles now
     return scene
@@ -413,4 +418,7 @@ def flight_scene(turbine: ArrayLike, seed: int) -> Scene:
     to show the same scene)."""
     scene_ss, _ = np.random.SeedSequence(seed).spawn(2)
     theta = np.asarray(turbine, dtype=np.float64).ravel()
-    return sample_scene(np.random.default_rng(scene_ss), TurbineParams.from_vector(theta))
+    scene = sample_scene(np.random.default_rng(scene_ss), TurbineParams.from_vector(theta))
+    # the flights' photos stay those the fits from photos were measured on
+    return replace(scene, wear=0.0, dirt=0.0, tower_section=0.0,
+                   clutter=NO_CLUTTER, blade_marks=False)
