@@ -53,8 +53,9 @@ bench: $(STAMP)
 bench-blender: $(STAMP)
 	$(BIN)/python benchmarks/bench_blender.py
 
-## model: train a heat-map CNN like the shipped one from scratch (320x240 photos, 160x120
-##        heat-maps; several hours on 2 cores; see src/turbinefit/models/README.md for how the shipped one was made)
+## model: train a heat-map CNN of the shipped one's shape from scratch on today's renders
+##        (320x240 photos, 160x120 heat-maps, data version 4: 30 % close-ups; several hours
+##        on 2 cores; see src/turbinefit/models/README.md for how the shipped one was made)
 model: $(STAMP)
 	$(BIN)/turbinefit train --out models/heatmap_cnn --images $(MODEL_IMAGES) --epochs $(MODEL_EPOCHS) \
 		--widths $(MODEL_WIDTHS)
