@@ -27,12 +27,15 @@
   run at 640 x 480, :class:`~turbinefit.detect.DetectOptions` ``input_scale``), the
   ratio of each to the ideal fit, and the tracker's causal estimates from the photos
   against the initial poses.
+* **Coarse to fine** (``--refine``): the detection figures above 320 px and the photo
+  fits again with :class:`~turbinefit.detect.DetectOptions` ``refine`` (the net run again
+  on tiles of each photo at up to 4x the first pass's resolution).
 
 Usage::
 
     python benchmarks/bench_resolution.py [--seeds 0 ... 11] [--keyframes 200]
         [--sizes 320 1280] [--large-keyframes 20] [--large-seeds 0]
-        [--detect 100] [--detect-large 10] [--photos 12 [--input-scales 1 2]]
+        [--detect 100] [--detect-large 10] [--photos 12 [--input-scales 1 2]] [--refine]
 
 Prints the figures and writes ``benchmarks/results/bench_resolution.json``.
 """
@@ -139,19 +142,24 @@ def photo_flight(seed: int, n: int) -> Path:
     return out
 
 
-def fit_photos(seed: int, n: int, input_scales: list[float], track_causal: bool
-               ) -> list[dict[str, Any]]:
+def fit_photos(seed: int, n: int, input_scales: list[float], track_causal: bool,
+               refine: bool = False) -> list[dict[str, Any]]:
     """Flight ``seed`` with 1280 x 960 photos fitted as ``fit`` does with no options: from
     its ideal 320 x 240 maps, and from its photos with the net run at each input scale
-    (1: the shipped detector, test-time zoom on; above 1: zoom off, maps that many times
-    larger); with ``track_causal``, the tracker's causal estimates from the photos at
-    scale 1 against the initial poses."""
+    without coarse to fine (1: the shipped detector's first pass, test-time zoom on; above
+    1: zoom off, maps that many times larger); with ``track_causal``, the tracker's causal
+    estimates from the photos at scale 1 (and coarse to fine) against the initial poses;
+    with ``refine``, also
+    from its photos coarse to fine (``DetectOptions(refine=True)``, what ``fit`` does)."""
     from bench_defaults import track
 
     folder = read_flight_folder(photo_flight(seed, n))
     sources: list[tuple[str, Any]] = [("ideal 320", FileHeatmaps(folder, mmap=False))]
     sources += [(f"photos x{s:g}", PhotoHeatmaps(folder, options=DetectOptions(
-        zoom=None if s == 1 else False, input_scale=s))) for s in input_scales]
+        zoom=None if s == 1 else False, input_scale=s, refine=False))) for s in input_scales]
+    if refine:
+        sources.append(("photos refined", PhotoHeatmaps(folder,
+                                                        options=DetectOptions(refine=True))))
     rows = []
     for name, source in sources:
         t0 = time.perf_counter()
@@ -164,7 +172,7 @@ def fit_photos(seed: int, n: int, input_scales: list[float], track_causal: bool
                "orientation_deg": acc.orientation_error_deg,
                "model_point_m": acc.model_point_error_m, "load_s": load_s,
                "verdict": res.verdict}
-        if track_causal and name == "photos x1":
+        if track_causal and name in ("photos x1", "photos refined"):
             t = track(flight, fit_config_for(source))
             row["causal_better_than_initial_after_20"] = t["causal_better_than_initial_after_20"]
         rows.append(row)
@@ -196,15 +204,16 @@ def heldout_view_photo(index: int, width: int) -> tuple[Any, Any]:
     return photo, view
 
 
-def detection(n: int, width: int) -> dict[str, dict[str, float]]:
-    """Detection figures of the shipped model on ``n`` held-out photos ``width`` wide."""
+def detection(n: int, width: int, refine: bool = False) -> dict[str, dict[str, float]]:
+    """Detection figures of the shipped model on ``n`` held-out photos ``width`` wide,
+    coarse to fine if ``refine``."""
     from turbinefit.detect import HeatmapDetector
     from turbinefit.eval.detection import DetectionStats
     from turbinefit.heatmaps.targets import TARGET_SIGMA_PX
     from turbinefit.sim.render import RenderConfig, render_heatmaps
     from turbinefit.turbine.model import model_points
 
-    det = HeatmapDetector()
+    det = HeatmapDetector(refine=refine)
     info = det.info
     grid_w = None
     stats: dict[str, DetectionStats] = {}
@@ -261,6 +270,9 @@ def main() -> None:
     ap.add_argument("--input-scales", type=float, nargs="+", default=[1.0, 2.0],
                     help="net input scales of the photo fits")
     ap.add_argument("--no-track", action="store_true", help="photo fits without the tracker")
+    ap.add_argument("--refine", action="store_true",
+                    help="also detect coarse to fine (DetectOptions refine): detection "
+                    "figures above 320 px and photo fits")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_resolution.json")
     args = ap.parse_args()
 
@@ -286,12 +298,18 @@ def main() -> None:
               f"{s['iterations']:.1f} it, {s['solve_s']:.2f} s ({s['flights']} flights)")
 
     detect: dict[str, Any] = {}
-    for width, n in ((320, args.detect), (1280, args.detect), (LARGE, args.detect_large)):
+    runs = [(str(w), w, n, False) for w, n in ((320, args.detect), (1280, args.detect),
+                                               (LARGE, args.detect_large))]
+    if args.refine:  # coarse to fine where a photo is at least twice the net's input
+        runs += [(f"{w} refined", w, n, True) for w, n in ((1280, args.detect),
+                                                           (LARGE, args.detect_large))]
+    for key, width, n, refine in runs:
         if n <= 0:
             continue
-        detect[str(width)] = d = detection(n, width)
+        detect[key] = d = detection(n, width, refine)
         d["photos"] = n
-        print(f"\ndetection on {n} held-out {width}x{SIZES[width]} photos "
+        print(f"\ndetection on {n} held-out {width}x{SIZES[width]} photos"
+              f"{', coarse to fine' if refine else ''} "
               f"(render {d['timing']['render_s_per_photo']:.1f} s, detect "
               f"{d['timing']['detect_s_per_photo']:.3f} s per photo)")
         for unit in ("photo_px", "px_at_320"):
@@ -302,7 +320,8 @@ def main() -> None:
     if args.photos > 0:
         print(f"\nfits with no options of {args.photos} flights with 1280x960 photos")
         for seed in range(PHOTO_SEED, PHOTO_SEED + args.photos):
-            photo_rows += fit_photos(seed, args.keyframes, args.input_scales, not args.no_track)
+            photo_rows += fit_photos(seed, args.keyframes, args.input_scales, not args.no_track,
+                                     args.refine)
         ideal = {r["seed"]: r for r in photo_rows if r["source"] == "ideal 320"}
         for name in dict.fromkeys(r["source"] for r in photo_rows):
             sel = [r for r in photo_rows if r["source"] == name]

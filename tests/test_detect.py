@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 from turbinefit.detect import (
+    REFINE_CHANNELS,
+    REFINE_GATE,
+    REFINE_RADIUS,
     TIP,
     ZOOM_MAX,
     DetectOptions,
@@ -19,7 +22,7 @@ from turbinefit.detect import (
     model_input_size,
     shift_tips,
 )
-from turbinefit.eval.detection import peak
+from turbinefit.eval.detection import local_maxima, peak, refine
 from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo
 
 
@@ -323,3 +326,98 @@ def test_pool_raises_the_first_error_in_order_and_starts_nothing_after_it() -> N
     assert next(it) == 50
     it.close()
     assert len(started) <= 1 + 2 * pool.workers
+
+
+@pytest.fixture(scope="module")
+def large_renders() -> list:
+    """Four held-out renders at 1280 x 960 (a seed never used for training) with the hub in
+    view; their points in photo pixels."""
+    from turbinefit.sim.dataset import DatasetSpec, render_sample
+
+    spec = DatasetSpec(1, seed=987_654, width=640, height=480, closeup_fraction=0.0)
+    out, i = [], 0
+    while len(out) < 4:
+        s = render_sample(spec, i)
+        if s.visible[2] and s.visible[1]:
+            out.append((s.image, (s.points + 0.5) * 2 - 0.5, s.visible))
+        i += 1
+    return out
+
+
+def test_refine_places_points_nearer_the_truth(large_renders: list) -> None:
+    """Coarse to fine on 1280 x 960 renders: the refined maps' blade tips and hub lie
+    nearer the rendered truth than the first pass's, the tips within a fraction of a
+    first-pass heat-map pixel (8 photo px)."""
+    plain = HeatmapDetector(threads=1)
+    fine = HeatmapDetector(threads=1, refine=True)
+    assert fine.refine_zoom(1280, 960) == 4 and fine.photo_width == 1280
+    hub: list[list[float]] = [[], []]
+    tips: list[list[float]] = [[], []]
+    for image, pts, visible in large_renders:
+        for k, det in enumerate((plain, fine)):
+            maps = det.detect_small(image)
+            f = 1280 / maps.shape[2]  # photo px per map px
+            u, v, _ = peak(maps[2])
+            hub[k].append(float(np.hypot((u + 0.5) * f - 0.5 - pts[2, 0],
+                                         (v + 0.5) * f - 0.5 - pts[2, 1])))
+            found = [refine(maps[TIP], int(i), int(j))[:2]
+                     for j, i in local_maxima(maps[TIP], det.info.tip_threshold)]
+            uv = (np.array(found).reshape(-1, 2) + 0.5) * f - 0.5
+            tips[k] += [float(np.hypot(*(uv - pts[t]).T).min())
+                        for t in (3, 4, 5) if visible[t] and len(uv)]
+    first = [e for e in tips[0] if e < 16]
+    refined = [e for e in tips[1] if e < 16]
+    assert len(first) >= 4 and len(refined) >= len(first) - 1, (tips[0], tips[1])
+    assert np.median(refined) < 0.6 * np.median(first), (first, refined)
+    assert np.median(refined) < 3.0, refined  # photo px: under half a first-pass map pixel
+    assert np.median(hub[1]) < np.median(hub[0]), hub
+
+
+def test_refine_moves_only_its_points_near_where_they_were(large_renders: list) -> None:
+    """The refined maps agree with the first pass: the other channels are the same, and a
+    refined channel changes only around the first pass's points (so never outside the
+    crops), whose peaks move by at most the gate, keeping their height."""
+    plain = HeatmapDetector(threads=1)
+    fine = HeatmapDetector(threads=1, refine=True)
+    moved = 0
+    for image, _, _ in large_renders[:2]:
+        a, b = plain.detect_small(image), fine.detect_small(image)
+        others = [c for c in range(7) if c not in REFINE_CHANNELS]
+        np.testing.assert_array_equal(a[others], b[others])
+        assert np.isfinite(b).all() and b.min() >= 0 and b.max() <= 1
+        for c in REFINE_CHANNELS:
+            thr = plain.info.tip_threshold if c == TIP else plain.info.threshold
+            before = ([refine(a[c], int(v), int(u))[:2] for u, v in local_maxima(a[c], thr)]
+                      if c == TIP else [peak(a[c])[:2]])
+            near = np.zeros(a[c].shape, bool)
+            for u, v in before:
+                near[max(int(v) - REFINE_RADIUS, 0):int(v) + REFINE_RADIUS + 2,
+                     max(int(u) - REFINE_RADIUS, 0):int(u) + REFINE_RADIUS + 2] = True
+            assert not (a[c] != b[c])[~near].any(), c  # nothing changes away from a point
+            for u, v in before:
+                if a[c][int(v), int(u)] <= thr:
+                    continue
+                p0 = refine(a[c], int(v), int(u))
+                i, j = np.unravel_index(np.argmax(np.where(near, b[c], 0)
+                                                  * (np.hypot(*np.mgrid[:120, :160][::-1]
+                                                              - np.array([u, v])[:, None, None])
+                                                     <= 2)), b[c].shape)
+                p1 = refine(b[c], int(i), int(j))
+                d = np.hypot(p1[0] - p0[0], p1[1] - p0[1])
+                assert d <= REFINE_GATE + 0.1, (c, p0, p1)
+                # the blob keeps its height (its samples' maximum moves with the phase)
+                assert 0.8 * p0[2] < p1[2] < 1.3 * p0[2], (c, p0, p1)
+                moved += d > 0.05
+    assert moved >= 2
+
+
+@pytest.mark.parametrize("size", [(160, 120), (320, 240), (600, 450)])
+def test_refine_leaves_photos_under_twice_the_input_alone(size: tuple[int, int],
+                                                          held_out_samples: list) -> None:
+    from turbinefit.io.images import resize_image
+
+    plain = HeatmapDetector(threads=1)
+    fine = DetectOptions(refine=True).detector(threads=1)
+    assert fine.refine_zoom(*size) == 1
+    image = resize_image(held_out_samples[0].image, *size)
+    np.testing.assert_array_equal(plain.detect(image), fine.detect(image))

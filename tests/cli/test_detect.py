@@ -190,3 +190,11 @@ def test_detect_large_jpeg_writes_small_maps_at_the_full_size_peaks(
     assert main(["detect", str(tmp_path / "big.jpg"), "--out", str(tmp_path / "wide"),
                  "--quiet", "--max-size", "400"]) == 0
     assert np.load(tmp_path / "wide" / "big.npy").shape == (7, 300, 400)
+    # --refine: maps of the same size, the first pass's except near its own responses
+    assert main(["detect", str(tmp_path / "big.jpg"), "--out", str(tmp_path / "fine"),
+                 "--quiet", "--threads", "1", "--refine"]) == 0
+    fine = np.load(tmp_path / "fine" / "big.npy")
+    assert fine.shape == maps.shape and np.isfinite(fine).all()
+    assert not np.array_equal(fine, maps)
+    # the base and the lines are the first pass's (of the photo decoded at 1280 px, not 640)
+    assert np.abs(fine[[0, 4, 5, 6]] - maps[[0, 4, 5, 6]]).max() < 0.1

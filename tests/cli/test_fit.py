@@ -289,6 +289,10 @@ def test_fit_defaults_follow_the_heatmap_source(photo_flight_dir: Path, tmp_path
     assert (cfg["points"], cfg["robust"]) == ("interp", PHOTO_FIT_DEFAULTS["robust"])
     cfg, summary, _ = run_fit("photos_preset", "--from-images", "--preset", "paper-best")
     assert (cfg["lines"], cfg["robust"]) == ("interp", "huber") and "defaults" not in summary
+    # 320 px photos: coarse to fine has nothing to add, and turning it off changes nothing
+    _, refined, _ = run_fit("photos_refine", "--from-images")
+    _, plain, _ = run_fit("photos_no_refine", "--from-images", "--no-refine")
+    assert refined["turbine"] == plain["turbine"] and refined["heatmaps"] == plain["heatmaps"]
 
 
 @pytest.mark.parametrize("value", [0.0, 1.0, 0.3])

@@ -51,11 +51,21 @@ def test_jpeg_photos_are_decoded_at_the_detector_width(tmp_path: Path,
         return images.read_image(path, reduce_to)
 
     monkeypatch.setattr(sources, "read_image", read)
-    source = PhotoHeatmaps(read_flight_folder(flight), threads=1)
+    from turbinefit.detect import DetectOptions
+
+    source = PhotoHeatmaps(read_flight_folder(flight), threads=1,
+                           options=DetectOptions(refine=False))
     maps = source.keyframe(1)
     assert asked == [(640, 480)] and maps.shape == (7, 240, 320)
     det = source._detector
     assert det is not None and det.photo_width == 640
+    # by default coarse to fine: decoded at 1280 px, the points placed on its pixels
+    fine = PhotoHeatmaps(read_flight_folder(flight), threads=1)
+    assert fine.options.refine and "coarse to fine" in fine.description
+    refined = fine.keyframe(1)
+    assert asked[-1] == (1280, 960) and fine._detector is not None
+    assert fine._detector.photo_width == 1280 and fine._detector.refine_zoom(1280, 960) == 4
+    assert np.abs(refined[[0, 4, 5, 6]] - maps[[0, 4, 5, 6]]).max() < 0.25
     full = det.detect(images.read_image(source.paths[1]), size=(320, 240))
     assert np.abs(maps - full).max() < 0.25  # decoded at 640 px: the same maps but rounding
     hub = [np.unravel_index(np.argmax(m[2]), m[2].shape) for m in (maps, full)]

@@ -120,9 +120,10 @@ def _tip_shift(text: str) -> float:
 
 
 def add_detect_options(parser: argparse.ArgumentParser) -> None:
-    """--no-flip, --tip-shift and --no-zoom: args.flip and args.zoom are False when given,
-    else None; args.tip_shift a number when given, else None (the model's metadata decides
-    what is None; :func:`detect_options` gathers them)."""
+    """--no-flip, --tip-shift, --no-zoom and --refine/--no-refine: args.flip and args.zoom
+    are False when given, else None; args.tip_shift a number when given, else None;
+    args.refine True or False when given, else None (the model's metadata, or for refine
+    the job, decides what is None; :func:`detect_options` gathers them)."""
     parser.add_argument("--no-flip", dest="flip", action="store_false", default=None,
                         help="run the CNN once per photo instead of averaging its maps with "
                         "those of the mirror image (faster, less accurate; default: as the "
@@ -138,13 +139,21 @@ def add_detect_options(parser: argparse.ArgumentParser) -> None:
                         "turbines to find their blade tips (faster on far views, fewer tips "
                         "found; default: as the model's metadata says, zoom for the shipped "
                         "model)")
+    parser.add_argument("--refine", action=argparse.BooleanOptionalAction, default=None,
+                        help="coarse to fine: look again at each tower top, hub and blade "
+                        "tip found in a photo at least twice the CNN's input size (640 px "
+                        "wide for the shipped model) on a crop read at the photo's own "
+                        "resolution (up to 4x), and move its blob there: points placed more "
+                        "precisely, for 1.5-2x the detection time (default: on for fit, "
+                        "track and init from photos; off for detect and evaluate)")
 
 
 def detect_options(args: argparse.Namespace) -> DetectOptions:
     """The :class:`~turbinefit.detect.DetectOptions` of :func:`add_detect_options`."""
     from turbinefit.detect import DetectOptions
 
-    return DetectOptions(flip=args.flip, tip_shift=args.tip_shift, zoom=args.zoom)
+    return DetectOptions(flip=args.flip, tip_shift=args.tip_shift, zoom=args.zoom,
+                         refine=args.refine)
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:

@@ -158,8 +158,12 @@ class PhotoHeatmaps:
 
         self.model = model
         self.options = options or DetectOptions()
+        if self.options.refine is None:  # coarse to fine (photos at least twice the input)
+            self.options = dataclasses.replace(self.options, refine=True)
         self.threads = threads
-        self.description = f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+        self.description = (f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
+                            + (", coarse to fine" if self.options.refine  # shipped: 320 px
+                               and min(cam.width, cam.height * 4 / 3) >= 640 else ""))
         self.detects = True
         self.fit_defaults = PHOTO_FIT_DEFAULTS
         self.defaults_name = f"heat-maps detected from photos ({_describe(PHOTO_FIT_DEFAULTS)})"
