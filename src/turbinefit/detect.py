@@ -62,7 +62,7 @@ faster for many photos):
    offset along the blade from 1.0 px outward to 0.0 (the crop's tips need no tip
    shift), for 1.7 points of tip precision; fits from 1280 x 960 photos end 4 % nearer
    the truth on average (docs/benchmarks.md). One more flip-averaged pass of the net per point (3-6
-   per photo: 1.5-2x the detection time); the base and the line channels are the first
+   per photo: about twice the detection time); the base and the line channels are the first
    pass's. ``fit``, ``track`` and ``init`` refine photos by default, ``detect`` and
    ``evaluate`` only when asked;
 6. the padding is cut off and the maps are resized back to the photo's own size

@@ -144,7 +144,7 @@ def add_detect_options(parser: argparse.ArgumentParser) -> None:
                         "tip found in a photo at least twice the CNN's input size (640 px "
                         "wide for the shipped model) on a crop read at the photo's own "
                         "resolution (up to 4x), and move its blob there: points placed more "
-                        "precisely, for 1.5-2x the detection time (default: on for fit, "
+                        "precisely, for about twice the detection time (default: on for fit, "
                         "track and init from photos; off for detect and evaluate)")
 
 
