@@ -104,10 +104,10 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from turbinefit.errors import InputError
-from turbinefit.eval.detection import local_maxima
-from turbinefit.eval.detection import refine as refine_peak
 from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
 from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo, valid_tip_shift
+from turbinefit.heatmaps.peaks import local_maxima
+from turbinefit.heatmaps.peaks import refine as refine_peak
 from turbinefit.heatmaps.resize import resize_maps
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image

@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from turbinefit.eval.detection import local_maxima
 from turbinefit.heatmaps import CHANNEL_NAMES
+from turbinefit.heatmaps.peaks import local_maxima
 
 LINE_CHANNELS = tuple(i for i, n in enumerate(CHANNEL_NAMES) if n.startswith("line_"))
 POINT_CHANNELS = tuple(i for i, n in enumerate(CHANNEL_NAMES) if n.startswith("point_"))

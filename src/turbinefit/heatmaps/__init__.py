@@ -5,9 +5,11 @@
 * :mod:`turbinefit.heatmaps.targets` - target maps drawn from 2-D keypoints, and the
   drawing primitives (blobs, ridges) the simulator shares;
 * :mod:`turbinefit.heatmaps.model_info` - a heat-map model's settings (its metadata);
-* :mod:`turbinefit.heatmaps.resize` - resizing maps.
+* :mod:`turbinefit.heatmaps.resize` - resizing maps;
+* :mod:`turbinefit.heatmaps.peaks` - a channel's maximum and local maxima, sub-pixel.
 
-The package imports only NumPy and the turbine model (and Pillow when maps are resized).
+The package imports only NumPy, SciPy (peaks) and the turbine model (and Pillow when maps
+are resized).
 """
 
 from turbinefit.heatmaps.channels import CHANNEL_NAMES as CHANNEL_NAMES
