@@ -112,6 +112,7 @@ def evaluate_labels(labels: str | os.PathLike[str], images_dir: str | os.PathLik
                   "labels": str(labels), "input_width": info.input_width,
                   "threshold": info.threshold, "tip_threshold": info.tip_threshold,
                   "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
+                  "refine": det.refine,
                   "match_px": match_px, "metrics": summary}
         write_text_atomic(out_path, _report_json(report))
     return EvaluateReport(summary, len(items), Path(det.path), info.input_width,
@@ -233,6 +234,7 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                   "masks": None if masks is None else str(masks), "grow": grow,
                   "threshold": det.info.threshold, "tip_threshold": det.info.tip_threshold,
                   "tip_shift_px": det.tip_shift, "flip": det.flip, "zoom": det.zoom,
+                  "refine": det.refine,
                   "metrics": summary,
                   "photos": [{"photo": p.name, "classes": list(p.classes),
                               "line_mass_inside": p.line_mass_inside,
