@@ -61,10 +61,10 @@ faster for many photos):
    falls from 5.2 to 2.7 photo px and the tower top's from 3.6 to 3.1, the tips' mean
    offset along the blade from 1.0 px outward to 0.0 (the crop's tips need no tip
    shift), for 1.7 points of tip precision; fits from 1280 x 960 photos end 4 % nearer
-   the truth on average (docs/benchmarks.md). One more flip-averaged pass of the net per point (3-6
-   per photo: about twice the detection time); the base and the line channels are the first
-   pass's. ``fit``, ``track`` and ``init`` refine photos by default, ``detect`` and
-   ``evaluate`` only when asked;
+   the truth on average (docs/benchmarks.md). One more flip-averaged pass of the net
+   per point (3-6 per photo: about twice the detection time); the base and the line
+   channels are the first pass's. ``fit``, ``track`` and ``init`` refine photos by
+   default, ``detect`` and ``evaluate`` only when asked;
 6. the padding is cut off and the maps are resized back to the photo's own size
    (bilinear, pixel centres aligned), float32 (7, H, W). Enlarging runs on onnxruntime
    (a one-node graph shipped as :data:`RESIZE_MODEL`, written by
@@ -106,8 +106,7 @@ from scipy import ndimage
 from turbinefit.errors import InputError
 from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
 from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo, valid_tip_shift
-from turbinefit.heatmaps.peaks import local_maxima
-from turbinefit.heatmaps.peaks import refine as refine_peak
+from turbinefit.heatmaps.peaks import peak, peaks
 from turbinefit.heatmaps.resize import resize_maps
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.images import resize_image
@@ -414,16 +413,14 @@ class HeatmapDetector:
         z = min(int(width // mw), int(height // mh), REFINE_MAX)
         return z if z >= REFINE_MIN else 1
 
-    def _points(self, channel: F32Array, c: int) -> list[tuple[float, float]]:
-        """(u, v) [map px, sub-pixel] of the points a channel of
-        :data:`REFINE_CHANNELS` detects: each local maximum above the tip threshold for
-        the tips, the maximum if above the threshold for the others."""
+    def _points(self, channel: F32Array, c: int) -> NDArray[np.float64]:
+        """(n, 2) positions (u, v) [map px, sub-pixel] of the points a channel of
+        :data:`REFINE_CHANNELS` detects: each 3 x 3 local maximum above the tip threshold
+        for the tips, the maximum if above the threshold for the others."""
         if c == TIP:
-            ij = [(int(i), int(j)) for j, i in local_maxima(channel, self.info.tip_threshold)]
-        else:
-            i, j = np.unravel_index(int(np.argmax(channel)), channel.shape)
-            ij = [(int(i), int(j))] if channel[i, j] > self.info.threshold else []
-        return [refine_peak(channel, i, j)[:2] for i, j in ij]
+            return peaks(channel, self.info.tip_threshold, 3)
+        u, v, value = peak(channel)
+        return np.array([(u, v)] if value > self.info.threshold else []).reshape(-1, 2)
 
     def _refine(self, image: NDArray[np.uint8], maps: F32Array) -> None:
         """Step 5 of the module docstring, in place: each point the first pass detects in
@@ -445,7 +442,7 @@ class HeatmapDetector:
                 crop = self._maps(image, self.flip, (left, top, left + bw, top + bh),
                                   shift=False)[c]
                 ch, cw = crop.shape
-                found = np.array(self._points(crop, c)).reshape(-1, 2)
+                found = self._points(crop, c)
                 # crop map px -> photo px (edges) -> first-pass map px
                 fu = (left + (found[:, 0] + 0.5) * bw / cw) * w / W - 0.5
                 fv = (top + (found[:, 1] + 0.5) * bh / ch) * h / H - 0.5
