@@ -293,6 +293,7 @@ def test_fit_defaults_follow_the_heatmap_source(photo_flight_dir: Path, tmp_path
     _, refined, _ = run_fit("photos_refine", "--from-images")
     _, plain, _ = run_fit("photos_no_refine", "--from-images", "--no-refine")
     assert refined["turbine"] == plain["turbine"] and refined["heatmaps"] == plain["heatmaps"]
+    assert "coarse to fine" not in refined["heatmaps"]
 
 
 @pytest.mark.parametrize("value", [0.0, 1.0, 0.3])

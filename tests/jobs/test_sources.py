@@ -55,6 +55,7 @@ def test_jpeg_photos_are_decoded_at_the_detector_width(tmp_path: Path,
 
     source = PhotoHeatmaps(read_flight_folder(flight), threads=1,
                            options=DetectOptions(refine=False))
+    assert "coarse to fine" not in source.description
     maps = source.keyframe(1)
     assert asked == [(640, 480)] and maps.shape == (7, 240, 320)
     det = source._detector
@@ -65,6 +66,7 @@ def test_jpeg_photos_are_decoded_at_the_detector_width(tmp_path: Path,
     refined = fine.keyframe(1)
     assert asked[-1] == (1280, 960) and fine._detector is not None
     assert fine._detector.photo_width == 1280 and fine._detector.refine_zoom(1280, 960) == 4
+    assert "coarse to fine" in fine.description  # as the detector found it
     assert np.abs(refined[[0, 4, 5, 6]] - maps[[0, 4, 5, 6]]).max() < 0.25
     full = det.detect(images.read_image(source.paths[1]), size=(320, 240))
     assert np.abs(maps - full).max() < 0.25  # decoded at 640 px: the same maps but rounding

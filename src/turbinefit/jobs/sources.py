@@ -71,10 +71,12 @@ class HeatmapSource(Protocol):
     """
 
     camera: PinholeCamera
-    description: str
     detects: bool
     fit_defaults: Mapping[str, Any]
     defaults_name: str
+
+    @property
+    def description(self) -> str: ...
 
     def __len__(self) -> int: ...
 
@@ -161,13 +163,23 @@ class PhotoHeatmaps:
         if self.options.refine is None:  # coarse to fine (photos at least twice the input)
             self.options = dataclasses.replace(self.options, refine=True)
         self.threads = threads
-        self.description = (f"detected from {IMAGE_DIR}/ with {model or 'the shipped model'}"
-                            + (", coarse to fine" if self.options.refine  # shipped: 320 px
-                               and min(cam.width, cam.height * 4 / 3) >= 640 else ""))
         self.detects = True
         self.fit_defaults = PHOTO_FIT_DEFAULTS
         self.defaults_name = f"heat-maps detected from photos ({_describe(PHOTO_FIT_DEFAULTS)})"
         self._detector: HeatmapDetector | None = None
+        self._refined: bool | None = None  # whether the photos detected were refined
+
+    @property
+    def description(self) -> str:
+        """Where the maps come from, and whether coarse to fine reads the photos (as the
+        detector found when it detected them; before any, as it would)."""
+        refined = self._refined
+        if refined is None:
+            det = self._keyframe_detector()
+            cam = self.photo_camera
+            refined = det.refine_zoom(*reduced_size(cam.width, cam.height, det.photo_width)) > 1
+        return (f"detected from {IMAGE_DIR}/ with {self.model or 'the shipped model'}"
+                + (", coarse to fine" if refined else ""))
 
     def __len__(self) -> int:
         return len(self.paths)
@@ -178,12 +190,17 @@ class PhotoHeatmaps:
     def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
         cam = self.photo_camera
         img = read_image(path, reduce_to=reduced_size(cam.width, cam.height, det.photo_width))
+        self._refined = det.refine_zoom(img.shape[1], img.shape[0]) > 1
         return det.detect(img, size=(self.camera.width, self.camera.height))
 
-    def keyframe(self, k: int) -> F32Maps:
+    def _keyframe_detector(self) -> HeatmapDetector:
+        """The one detector of :meth:`keyframe` (made on first use)."""
         if self._detector is None:
             self._detector = self.options.detector(self.model, spinning=False)
-        return self._detect(self._detector, self.paths[k])
+        return self._detector
+
+    def keyframe(self, k: int) -> F32Maps:
+        return self._detect(self._keyframe_detector(), self.paths[k])
 
     def stack(self, progress: bool = False) -> HeatmapStack:
         from tqdm import tqdm
