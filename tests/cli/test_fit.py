@@ -329,6 +329,29 @@ def test_fit_help_documents_the_exit_statuses(capsys: pytest.CaptureFixture[str]
     assert "3 verdict failed (outputs written)" in out
 
 
+@pytest.mark.parametrize("command", ["fit", "track"])
+def test_help_gives_the_defaults_a_job_starts_from(command: str,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """Each fit option's help gives the default of a job with neither --config nor
+    --preset (per kind of heat-maps where they differ: FILE_FIT_DEFAULTS,
+    PHOTO_FIT_DEFAULTS), and FitConfig's where that differs; no preset is called the
+    default."""
+    from turbinefit.jobs.sources import PHOTO_FIT_DEFAULTS
+
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "(default)" not in out
+    assert FILE_FIT_DEFAULTS["lines"] == PHOTO_FIT_DEFAULTS["lines"] == "corr"
+    assert "--lines {interp,corr,none} Unary cost of the line samples (same choices). " \
+        "(default: corr; FitConfig: interp)" in out
+    assert "(default: 2 on heat-map files, 0.5 from photos)" in out  # robust_scale
+    assert "(default: 0.5 on heat-map files, 2 from photos)" in out  # pixel_sigma
+    assert "(default: cauchy; FitConfig: huber)" in out
+    assert "--gauge {first,gps} first: hold the first keyframe's pose; gps: weak absolute " \
+        "position priors instead. (default: first)" in out
+
+
 def test_summary_json_is_strict() -> None:
     from turbinefit.jobs.outputs import summary_json
 

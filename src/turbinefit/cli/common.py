@@ -218,14 +218,22 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
     choices, help and default from the dataclass and its field docstrings), except those
     only a YAML file sets; ``batch=False`` (``track``) leaves out those the tracker does
     not use. Every option defaults to None: unset, the --config or --preset value holds;
-    values are checked by FitConfig itself when the job applies them."""
-    from turbinefit.solver.config import FitConfig
+    values are checked by FitConfig itself when the job applies them. Each help says the
+    default the job starts from without --config or --preset (that for its kind of
+    heat-maps where the two differ) and, where it differs, FitConfig's."""
+    from turbinefit.solver.config import FILE_FIT_DEFAULTS, PHOTO_FIT_DEFAULTS, FitConfig
 
     default = FitConfig()
     docs = field_docs(FitConfig)
     hints = typing.get_type_hints(FitConfig)
-    main = parser.add_argument_group("fit options (as in turbinefit.FitConfig; any of them "
-                                     "can also be set in a --config YAML file)")
+    main = parser.add_argument_group(
+        "fit options (as in turbinefit.FitConfig; any of them can also be set in a --config "
+        "YAML file)",
+        textwrap.fill("With neither --config nor --preset, a job starts from the options "
+                      "measured best for its kind of heat-maps (files, or detected from "
+                      "photos): the defaults below. With --preset, from that preset (a few "
+                      "options set over FitConfig's defaults, shown as 'FitConfig'); with "
+                      "--config, from the file.", 76))
     advanced = parser.add_argument_group("advanced fit options")
     fields = sorted(dataclasses.fields(FitConfig),
                     key=lambda f: _MAIN.index(f.name) if f.name in _MAIN else len(_MAIN))
@@ -237,9 +245,11 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
         flags = (f"--{f.name.replace('_', '-')}", *_ALIASES.get(f.name, ()))
         text = docs.get(f.name, "").replace("%", "%%")
         kind = hints[f.name]
+        shown = _default_text(value, FILE_FIT_DEFAULTS.get(f.name, value),
+                              PHOTO_FIT_DEFAULTS.get(f.name, value))
         if kind is bool:
             group.add_argument(*flags, dest=f.name, action=argparse.BooleanOptionalAction,
-                               default=None, help=f"{text} (default: {value})")
+                               default=None, help=f"{text} ({shown})")
             continue
         kw: dict[str, Any] = {}
         if typing.get_origin(kind) is typing.Literal:
@@ -250,10 +260,24 @@ def add_fit_options(parser: argparse.ArgumentParser, *, batch: bool = True) -> N
         else:
             kw["type"] = _integer if kind is int else number
             kw["metavar"] = "N" if kind is int else "X"
-        shown = "auto" if value is None else value  # unset: resolved from the data
-        group.add_argument(*flags, dest=f.name, default=None,
-                           help=f"{text} (default: {value:g})" if isinstance(value, float)
-                           else f"{text} (default: {shown})", **kw)
+        group.add_argument(*flags, dest=f.name, default=None, help=f"{text} ({shown})", **kw)
+
+
+def _default_text(config: Any, files: Any, photos: Any) -> str:
+    """'default: X' for a fit option whose value is ``config`` in FitConfig, and ``files``
+    and ``photos`` in the defaults per kind of heat-maps."""
+    def show(v: Any) -> str:
+        if v is None:
+            return "auto"  # unset: resolved from the data
+        return f"{v:g}" if isinstance(v, float) else str(v)
+
+    if files == photos:
+        text = f"default: {show(files)}"
+    else:
+        text = f"default: {show(files)} on heat-map files, {show(photos)} from photos"
+    if config not in (files, photos):
+        text += f"; FitConfig: {show(config)}"
+    return text
 
 
 def fit_option_names(args: argparse.Namespace) -> dict[str, Any]:
@@ -272,7 +296,9 @@ def add_flight_job_options(parser: argparse.ArgumentParser, presets: str,
     base = parser.add_mutually_exclusive_group()
     base.add_argument("--config", type=Path, default=None,
                       help="YAML file of fit options (e.g. a previous fit's config.yaml)")
-    base.add_argument("--preset", default=None, help=f"named configuration: {presets}")
+    base.add_argument("--preset", default=None,
+                      help=f"start from a named configuration instead of the defaults for the "
+                      f"flight's kind of heat-maps: {presets}")
     add_fit_options(parser, batch=batch)
 
 

@@ -34,8 +34,8 @@ resolved options) and plots. Every option of
 turbinefit.FitConfig can be set in a --config YAML file; command-line options
 override it."""
 
-PRESETS = ("paper-best (default), all-interp, all-corr, paper-worst, corr-normal, pose-only, "
-           "turbine-only")
+PRESETS = ("paper-best (the paper's best), all-interp, all-corr, paper-worst, corr-normal, "
+           "pose-only, turbine-only")
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:

@@ -16,7 +16,6 @@ import dataclasses
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -27,6 +26,7 @@ from turbinefit.geometry.camera import PinholeCamera, reduced_size
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
 from turbinefit.io.images import image_size, read_image, resize_image
+from turbinefit.solver.config import FILE_FIT_DEFAULTS, PHOTO_FIT_DEFAULTS
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
     from turbinefit.detect import DetectOptions, HeatmapDetector
@@ -37,18 +37,6 @@ F32Maps = NDArray[np.float32]
 #: Heat-maps detected for a fit are at most this wide [px]; a larger camera is resized.
 FIT_DETECT_WIDTH = 320
 
-#: The fit options that measured best on heat-map files (the simulator's maps): line
-#: correspondences scored along the search normal and a Cauchy loss
-#: (``benchmarks/bench_defaults.py``; the paper's configuration is ``--preset paper-best``).
-FILE_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
-    "lines": "corr", "line_residual": "normal", "robust": "cauchy"})
-#: The fit options that measured best on heat-maps the CNN detects in photos: as for files,
-#: with correspondences trusted less (2 px) and a tight Cauchy loss (scale 0.5: it bends at
-#: 1 px), since the net's peaks carry errors and biases of about a pixel and some of its
-#: answers are wrong altogether (``benchmarks/bench_defaults.py``).
-PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
-    "lines": "corr", "line_residual": "normal", "robust": "cauchy", "pixel_sigma": 2.0,
-    "robust_scale": 0.5})
 
 
 def _describe(options: Mapping[str, Any]) -> str:

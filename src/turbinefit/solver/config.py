@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Literal
 
 from turbinefit.turbine.model import TurbineGeometry
@@ -275,6 +277,21 @@ def pair_frame_line(requested: FitConfig, used: FitConfig) -> str:
         why = "GPS/IMU keyframes"
     return f"pairwise frame: {used.pair_frame} ({why})"
 
+
+#: The fit options that measured best on heat-map files (the simulator's maps): line
+#: correspondences scored along the search normal and a Cauchy loss
+#: (``benchmarks/bench_defaults.py``; the paper's configuration is ``--preset paper-best``).
+#: What ``fit`` and ``track`` set over :class:`FitConfig` when neither ``--config`` nor
+#: ``--preset`` is given (``turbinefit.jobs.sources``).
+FILE_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
+    "lines": "corr", "line_residual": "normal", "robust": "cauchy"})
+#: The fit options that measured best on heat-maps the CNN detects in photos: as for files,
+#: with correspondences trusted less (2 px) and a tight Cauchy loss (scale 0.5: it bends at
+#: 1 px), since the net's peaks carry errors and biases of about a pixel and some of its
+#: answers are wrong altogether (``benchmarks/bench_defaults.py``).
+PHOTO_FIT_DEFAULTS: Mapping[str, Any] = MappingProxyType({
+    "lines": "corr", "line_residual": "normal", "robust": "cauchy", "pixel_sigma": 2.0,
+    "robust_scale": 0.5})
 
 #: Named configurations: the paper's four unary combinations, the normal-residual variant
 #: of corr lines, and the three modes.
