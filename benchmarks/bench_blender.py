@@ -31,8 +31,10 @@ With ``--flights SEED ...``, also whole benchmark flights of ``bench_detect.py``
 keyframes, the flight's own scene): their photos rendered by Blender, the detection
 figures of the flight's photos of either renderer against its ideal heat-maps, and the
 fit from them (``turbinefit fit --from-images --preset paper-best --points interp --robust
-cauchy``) beside the fit from the ideal heat-maps, and the fit from them with no options
-(the defaults for photos) and with those and ``--robust-scale 1`` (~30 min a flight here).
+cauchy``) beside the fit from the ideal heat-maps, the fit from them with no options
+(the defaults for photos) and with those and ``--robust-scale 1``, and the tracker replayed
+on the detected maps with the defaults and with the interp options (25-40 min a flight
+here, most of it rendering).
 
 Usage::
 
@@ -47,6 +49,7 @@ overlaid, above the same views by turbinefit's renderer).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import json
 import math
@@ -58,6 +61,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from bench_defaults import track
 from bench_detect import (
     DATA,
     DETECTED_OPTIONS,
@@ -72,8 +76,9 @@ from PIL import Image
 
 from turbinefit.detect import DetectorPool, overlay
 from turbinefit.eval.detection import DetectionStats
-from turbinefit.io.flight_folder import IMAGE_DIR, read_flight, write_flight
+from turbinefit.io.flight_folder import IMAGE_DIR, read_flight, read_flight_folder, write_flight
 from turbinefit.io.images import resize_image, write_png
+from turbinefit.jobs.sources import PhotoHeatmaps, fit_config_for
 from turbinefit.sim.dataset import (
     IMAGE_SCALE,
     DatasetSpec,
@@ -84,6 +89,7 @@ from turbinefit.sim.dataset import (
 )
 from turbinefit.sim.images import Scene, TurbineSolid, blade_profile, flight_scene, sample_scene
 from turbinefit.sim.scenario import SimConfig
+from turbinefit.solver.config import PRESETS, FitConfig
 from turbinefit.turbine.model import TurbineGeometry
 
 HERE = Path(__file__).resolve().parent
@@ -342,6 +348,22 @@ def views_benchmark(pool: DetectorPool, n: int, blender: str, samples: int) -> d
     return {"n": n, "seed": SEED, **results}
 
 
+def track_photos(path: Path, config: FitConfig | None = None) -> dict[str, Any]:
+    """The tracker (window 20) replayed on the maps detected in a flight's photos, with
+    ``config`` or, None, the defaults for photos: ``bench_defaults.py``'s replay (final
+    and causal position errors, the share of keyframes after the 20th whose causal
+    position beats the initial one)."""
+    folder = read_flight_folder(path)
+    source = PhotoHeatmaps(folder)
+    flight = folder.flight(source.stack(), source.camera)
+    return track(flight, fit_config_for(source, config))
+
+
+#: ``DETECTED_OPTIONS`` (``--preset paper-best --points interp --robust cauchy``) as a
+#: FitConfig, for the tracker's replay.
+INTERP_CAUCHY = dataclasses.replace(PRESETS["paper-best"], points="interp", robust="cauchy")
+
+
 def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
                      keyframes: int = 200) -> dict[str, Any]:
     """The benchmark flight ``seed`` (``bench_detect.py``'s, ``keyframes`` long) with its photos
@@ -371,7 +393,9 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
         out[name] = {"detection": flight_detection(pool, path),
                      "fit": fit(path, ["--from-images", *DETECTED_OPTIONS]),
                      "fit_defaults": fit(path, ["--from-images"]),
-                     "fit_defaults_scale1": fit(path, ["--from-images", "--robust-scale", "1"])}
+                     "fit_defaults_scale1": fit(path, ["--from-images", "--robust-scale", "1"]),
+                     "track_defaults": track_photos(path),
+                     "track_interp": track_photos(path, INTERP_CAUCHY)}
     out["ideal_fit"] = fit(src, DETECTED_OPTIONS)
     print(f"flight {seed}, {' '.join(DETECTED_OPTIONS)}: ideal heat-maps "
           f"{out['ideal_fit']['position_m']:.3f} m; from turbinefit's photos "
@@ -379,6 +403,11 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
           f"{out['blender']['fit']['position_m']:.3f} m (initial "
           f"{out['ideal_fit']['before_position_m']:.3f} m)")
     for name in ("turbinefit", "blender"):
+        for key, what in (("track_defaults", "no options"), ("track_interp", "interp")):
+            t = out[name][key]
+            print(f"  {name:10s} photos, track with {what}: final {t['final_position_m']:.3f} m, "
+                  f"causal {t['causal_position_m']:.3f} m, better than initial after the 20th "
+                  f"{t['causal_better_than_initial_after_20']:.0%}")
         print(f"  {name:10s} photos, fit with no options {out[name]['fit_defaults']['position_m']:.3f}"
               f" m / {out[name]['fit_defaults']['model_point_m']:.3f} m model points; the "
               f"same with --robust-scale 1 {out[name]['fit_defaults_scale1']['position_m']:.3f} m"
