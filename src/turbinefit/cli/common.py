@@ -288,9 +288,13 @@ def fit_option_names(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in vars(args).items() if k in names and v is not None}
 
 
-def add_flight_job_options(parser: argparse.ArgumentParser, presets: str,
-                           batch: bool = True) -> None:
-    """--out, --config | --preset and the fit options (``fit`` and ``track``)."""
+def add_flight_job_options(parser: argparse.ArgumentParser, batch: bool = True) -> None:
+    """--out, --config | --preset and the fit options (``fit`` and ``track``; ``batch=False``:
+    the tracker, whose help leaves out the presets of a mode it does not run)."""
+    from turbinefit.solver.config import PRESETS
+
+    presets = ", ".join(name + (" (the paper's best)" if name == "paper-best" else "")
+                        for name, cfg in PRESETS.items() if batch or cfg.mode != "turbine")
     parser.add_argument("--out", dest="out_dir", metavar="OUT_DIR", type=Path, required=True,
                         help="output folder (written atomically; never the input folder)")
     base = parser.add_mutually_exclusive_group()

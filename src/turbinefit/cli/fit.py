@@ -34,9 +34,6 @@ resolved options) and plots. Every option of
 turbinefit.FitConfig can be set in a --config YAML file; command-line options
 override it."""
 
-PRESETS = ("paper-best (the paper's best), all-interp, all-corr, paper-worst, corr-normal, "
-           "pose-only, turbine-only")
-
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     f: argparse.ArgumentParser = sub.add_parser(
@@ -44,7 +41,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
         usage="%(prog)s FLIGHT_DIR --out OUT_DIR [--config FILE | --preset NAME] [options]",
         epilog=VERDICT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     f.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, help="flight folder to fit")
-    add_flight_job_options(f, PRESETS)
+    add_flight_job_options(f)
     add_photo_options(f, "detect the heat-maps from images/")
     f.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but fit outputs)")

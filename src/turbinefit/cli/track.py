@@ -62,8 +62,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     k.add_argument("--no-prior", action="store_true",
                    help="no start-up prior on the turbine (default: a prior around the initial "
                    "turbine, removed once the images outweigh it)")
-    add_flight_job_options(k, "paper-best (the paper's best), all-interp, all-corr, "
-                           "paper-worst, corr-normal, pose-only", batch=False)
+    add_flight_job_options(k, batch=False)
     add_photo_options(k, "detect each keyframe's heat-maps from images/ as it arrives")
     k.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but track "

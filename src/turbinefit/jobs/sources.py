@@ -38,7 +38,6 @@ F32Maps = NDArray[np.float32]
 FIT_DETECT_WIDTH = 320
 
 
-
 def _describe(options: Mapping[str, Any]) -> str:
     return ", ".join(f"{k}={v}" for k, v in options.items())
 
@@ -164,8 +163,7 @@ class PhotoHeatmaps:
         refined = self._refined
         if refined is None:
             det = self._keyframe_detector()
-            cam = self.photo_camera
-            refined = det.refine_zoom(*reduced_size(cam.width, cam.height, det.photo_width)) > 1
+            refined = det.refine_zoom(*self._decoded_size(det)) > 1
         return (f"detected from {IMAGE_DIR}/ with {self.model or 'the shipped model'}"
                 + (", coarse to fine" if refined else ""))
 
@@ -175,9 +173,13 @@ class PhotoHeatmaps:
     def where(self, k: int) -> Path:
         return self.paths[k]
 
-    def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
+    def _decoded_size(self, det: HeatmapDetector) -> tuple[int, int]:
+        """(width, height) photos are decoded at for ``det``: at most its photo width."""
         cam = self.photo_camera
-        img = read_image(path, reduce_to=reduced_size(cam.width, cam.height, det.photo_width))
+        return reduced_size(cam.width, cam.height, det.photo_width)
+
+    def _detect(self, det: HeatmapDetector, path: Path) -> F32Maps:
+        img = read_image(path, reduce_to=self._decoded_size(det))
         self._refined = det.refine_zoom(img.shape[1], img.shape[0]) > 1
         return det.detect(img, size=(self.camera.width, self.camera.height))
 
