@@ -348,15 +348,15 @@ def views_benchmark(pool: DetectorPool, n: int, blender: str, samples: int) -> d
     return {"n": n, "seed": SEED, **results}
 
 
-def track_photos(path: Path, config: FitConfig | None = None) -> dict[str, Any]:
-    """The tracker (window 20) replayed on the maps detected in a flight's photos, with
-    ``config`` or, None, the defaults for photos: ``bench_defaults.py``'s replay (final
-    and causal position errors, the share of keyframes after the 20th whose causal
-    position beats the initial one)."""
+def track_photos(path: Path, configs: dict[str, FitConfig | None]) -> dict[str, Any]:
+    """The tracker (window 20) replayed on the maps detected (once) in a flight's photos,
+    with each of ``configs`` (None: the defaults for photos): ``bench_defaults.py``'s
+    replay (final and causal position errors, the share of keyframes after the 20th whose
+    causal position beats the initial one), by name."""
     folder = read_flight_folder(path)
     source = PhotoHeatmaps(folder)
     flight = folder.flight(source.stack(), source.camera)
-    return track(flight, fit_config_for(source, config))
+    return {name: track(flight, fit_config_for(source, cfg)) for name, cfg in configs.items()}
 
 
 #: ``DETECTED_OPTIONS`` (``--preset paper-best --points interp --robust cauchy``) as a
@@ -394,8 +394,8 @@ def flight_benchmark(pool: DetectorPool, seed: int, blender: str, samples: int,
                      "fit": fit(path, ["--from-images", *DETECTED_OPTIONS]),
                      "fit_defaults": fit(path, ["--from-images"]),
                      "fit_defaults_scale1": fit(path, ["--from-images", "--robust-scale", "1"]),
-                     "track_defaults": track_photos(path),
-                     "track_interp": track_photos(path, INTERP_CAUCHY)}
+                     **track_photos(path, {"track_defaults": None,
+                                           "track_interp": INTERP_CAUCHY})}
     out["ideal_fit"] = fit(src, DETECTED_OPTIONS)
     print(f"flight {seed}, {' '.join(DETECTED_OPTIONS)}: ideal heat-maps "
           f"{out['ideal_fit']['position_m']:.3f} m; from turbinefit's photos "
