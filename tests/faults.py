@@ -320,7 +320,7 @@ def npy(k: int | None, make: Callable[[np.ndarray], np.ndarray]) -> Mutation:
 
 def set_value(c: int, value: float) -> Callable[[np.ndarray], np.ndarray]:
     def make(a: np.ndarray) -> np.ndarray:
-        a = a.copy()
+        a = a.astype(np.float32)  # a copy; float16 cannot hold every bad value
         a[c, 3, 4] = value
         return a
     return make

@@ -25,9 +25,17 @@ def both(monkeypatch, fn):
     return a, fn()
 
 
-@pytest.fixture(scope="module", params=["hard", "distorted"])
+@pytest.fixture(scope="module", params=["hard", "distorted", "hard, float16 maps"])
 def flight(request):
-    return simulated_flight(12, request.param, seed=3, width=320)
+    """Flights with faults and distortion; the last with its heat-maps stored as float16,
+    which the kernels read as such and numpy converts."""
+    name, _, half = request.param.partition(", ")
+    f = simulated_flight(12, name, seed=3, width=320)
+    if half:
+        maps = np.stack([f.heatmaps[k] for k in range(f.num_keyframes)]).astype(np.float16)
+        f = type(f)(**{**f.__dict__, "heatmaps": HeatmapStack(maps)})
+        assert f.heatmaps.half and f.heatmaps.pointers() is not None
+    return f
 
 
 @pytest.mark.parametrize("kw", [
@@ -137,3 +145,17 @@ def test_copied_stack_points_at_its_own_arrays(flight, copy):
     assert list(dup.pointers()) == [dup[k].ctypes.data for k in range(len(dup))]
     for k in range(len(dup)):
         np.testing.assert_array_equal(dup[k], stack[k])
+
+
+
+def test_value_check_of_float16_maps():
+    """tf_first_out_of_range reads float16 storage: every bit pattern from +0 to 1.0 is in
+    [0, 1], the next one (1 + 2^-10) and a NaN, an infinity or a negative value are not."""
+    patterns = np.arange(0x3C01, dtype=np.uint16)  # +0 ... 1.0, subnormals included
+    maps = np.stack([patterns, patterns]).view(np.float16)
+    ptr = lambda a: np.array([row.ctypes.data for row in a], dtype=np.uint64)  # noqa: E731
+    assert _native.first_out_of_range(ptr(maps), True, maps.shape[1], 0.0, 1.0) == 2
+    for bad in (np.float16(1.0009765625), np.nan, np.inf, np.float16(-6e-8)):
+        m = maps.copy()
+        m[1, 1234] = bad
+        assert _native.first_out_of_range(ptr(m), True, m.shape[1], 0.0, 1.0) == 1

@@ -14,7 +14,8 @@
  * Conventions (see the Python modules): poses are world_T_cam as wxyz + xyz; a camera
  * point is R^T (p - t); the local pose update is t + dt, R Exp(dphi); Jacobian columns are
  * (dt[3], dphi[3], theta[7]). Heat-maps are float32 (7, H, W), element [c, i, j] at
- * u = j, v = i. Loaded with ctypes (no Python C API).
+ * u = j, v = i; or float16 (a flight's maps share one storage, `half`), read through
+ * half_value. Loaded with ctypes (no Python C API).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -123,9 +124,45 @@ static void cr_weights(double t, double w[4], double dw[4], double d2w[4]) {
 
 static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/* One half-precision value as float32, exactly (numpy's conversion; a NaN stays a NaN):
+ * the 15 bits of exponent and mantissa moved to float32's places and scaled by 2^112,
+ * which rebiases the exponent of normal and subnormal values alike; infinities and NaNs
+ * (exponent all ones) get float32's all-ones exponent. Branch-free (the value check's
+ * loop over a keyframe vectorises). */
+static inline float half_value(uint16_t h) {
+    union { uint32_t u; float f; } o, magic, infnan;
+    magic.u = (uint32_t)(254 - 15) << 23;  /* 2^112 */
+    infnan.u = (uint32_t)(127 + 16) << 23; /* 65536: half's largest exponent, rebiased */
+    o.u = (uint32_t)(h & 0x7fff) << 13;
+    o.f *= magic.f;
+    o.u |= (o.f >= infnan.f) ? (uint32_t)255 << 23 : 0u;
+    o.u |= (uint32_t)(h & 0x8000) << 16;
+    return o.f;
+}
+
+/* One channel plane of a keyframe's heat-maps, stored as float32 or float16 (the maps of
+ * a flight share one storage; float16 values are read through half_value). */
+typedef struct {
+    const float *f;
+    const uint16_t *h;
+} Plane;
+
+/* The plane that starts `offset` values into the maps at address `addr`. */
+static inline Plane plane_at(uint64_t addr, int64_t half, size_t offset) {
+    Plane p;
+    p.f = half ? NULL : (const float *)(uintptr_t)addr + offset;
+    p.h = half ? (const uint16_t *)(uintptr_t)addr + offset : NULL;
+    return p;
+}
+
+/* Value i of a plane. */
+static inline double at(Plane p, size_t i) {
+    return p.h ? (double)half_value(p.h[i]) : (double)p.f[i];
+}
+
 /* Value, gradient (du, dv) and Hessian (uu, uv, vv) of one channel plane at (u, v).
  * Returns 0, or 1 if a tap is not finite. */
-static int bicubic(const float *plane, int W, int H, double u, double v, double *G,
+static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
                    double dG[2], double hG[3]) {
     u = fmin(fmax(u, -1.0), (double)W);
     v = fmin(fmax(v, -1.0), (double)H);
@@ -139,10 +176,10 @@ static int bicubic(const float *plane, int W, int H, double u, double v, double 
     double val = 0, gu = 0, gv = 0, huu = 0, huv = 0, hvv = 0;
     int bad = 0;
     for (int i = 0; i < 4; i++) {
-        const float *row = plane + (size_t)clampi(iv - 1 + i, 0, H - 1) * W;
+        const size_t row = (size_t)clampi(iv - 1 + i, 0, H - 1) * W;
         double pu = 0, pdu = 0, pd2u = 0;
         for (int j = 0; j < 4; j++) {
-            double p = row[cols[j]];
+            double p = at(plane, row + cols[j]);
             if (!isfinite(p)) bad = 1;
             pu += p * wu[j];
             pdu += p * dwu[j];
@@ -225,7 +262,7 @@ TF_EXPORT int64_t tf_image_terms(
     int64_t N, int64_t M, const double *poses, const double *cam_par, int64_t width,
     int64_t height, const double *A, const double *B, const double *JA, const double *JB,
     const double *frac, int64_t frac_stride, const int64_t *channels,
-    const uint64_t *maps, const int64_t *keyframes, int64_t kind, const double *target,
+    const uint64_t *maps, int64_t half, const int64_t *keyframes, int64_t kind, const double *target,
     const uint8_t *found, const double *normal, const double *par, int64_t with_jacobian, double *JtHJ, double *g,
     double *cost, int64_t *count) {
     Camera cam = camera_from(cam_par, (int)width, (int)height);
@@ -243,7 +280,7 @@ TF_EXPORT int64_t tf_image_terms(
         double R[9];
         quat_to_R(poses + 7 * n, R);
         const double *t = poses + 7 * n + 4;
-        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        const uint64_t hm = maps[keyframes[n]];
         double acc[NCOL * NCOL];
         double gacc[NCOL];
         memset(acc, 0, sizeof acc);
@@ -269,7 +306,7 @@ TF_EXPORT int64_t tf_image_terms(
                 if (!front) dwb[0] = dwb[1] = 0.0;
                 if (front && in_image(&cam, uv)) cnt++;
                 double G, dG[2], hG[3];
-                const float *pl = hm + (size_t)channels[m] * plane;
+                Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
                 bad |= bicubic(pl, W, H, uv[0], uv[1], &G, dG, hG);
                 double Gc = fmin(fmax(G, 0.0), 1.0);
                 double rho = log1p_eps - log(Gc + eps);
@@ -391,7 +428,7 @@ static double peak_offset(double vm, double v0, double vp) {
 
 /* Max over centre + offsets (du, dv pairs) inside the image and within radius R of the
  * window centre (cu0, cv0); -1 if none. Returns the (clamped) coordinates of the first max. */
-static double window_max(const float *pl, int W, int H, int bu, int bv, const int64_t *off,
+static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *off,
                          int64_t K, int cu0, int cv0, int64_t R, int *ou, int *ov, int *bad) {
     double best = -INFINITY;
     int best_u = 0, best_v = 0;
@@ -400,7 +437,7 @@ static double window_max(const float *pl, int W, int H, int bu, int bv, const in
         int du = cu - cu0, dv = cv - cv0;
         int ok = cu >= 0 && cu < W && cv >= 0 && cv < H && (int64_t)du * du + (int64_t)dv * dv <= R * R;
         int u = clampi(cu, 0, W - 1), v = clampi(cv, 0, H - 1);
-        double val = pl[(size_t)v * W + u];
+        double val = at(pl, (size_t)v * W + u);
         if (!isfinite(val)) *bad = 1;
         if (!ok) val = -1.0;
         if (val > best) { best = val; best_u = u; best_v = v; }
@@ -413,7 +450,7 @@ static double window_max(const float *pl, int W, int H, int bu, int bv, const in
  * from the neighbours `step` px away. uv (N, M, 2), usable (N, M). Writes target (N, M, 2),
  * found (N, M). Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_point_search_scaled(
-    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
+    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
     const int64_t *keyframes, const int64_t *channels, const double *uv, const uint8_t *usable,
     int64_t R, const int64_t *coarse, int64_t K1, const int64_t *fine, int64_t K2,
     int64_t step, double threshold, double *target, uint8_t *found) {
@@ -422,11 +459,11 @@ TF_EXPORT int64_t tf_point_search_scaled(
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(static) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
-        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        const uint64_t hm = maps[keyframes[n]];
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            const float *pl = hm + (size_t)channels[m] * plane;
+            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
             int use = usable[i];
             int cu0 = (int)nearbyint(uv[2 * i]), cv0 = (int)nearbyint(uv[2 * i + 1]);
             int bu, bv, fu, fv;
@@ -441,10 +478,10 @@ TF_EXPORT int64_t tf_point_search_scaled(
             }
             int inner = fu >= s && fu <= W - 1 - s && fv >= s && fv <= H - 1 - s;
             found[i] = use && peak >= threshold && inner;
-            double n0 = pl[(size_t)fv * W + clampi(fu - s, 0, W - 1)];
-            double n1 = pl[(size_t)fv * W + clampi(fu + s, 0, W - 1)];
-            double n2 = pl[(size_t)clampi(fv - s, 0, H - 1) * W + fu];
-            double n3 = pl[(size_t)clampi(fv + s, 0, H - 1) * W + fu];
+            double n0 = at(pl, (size_t)fv * W + clampi(fu - s, 0, W - 1));
+            double n1 = at(pl, (size_t)fv * W + clampi(fu + s, 0, W - 1));
+            double n2 = at(pl, (size_t)clampi(fv - s, 0, H - 1) * W + fu);
+            double n3 = at(pl, (size_t)clampi(fv + s, 0, H - 1) * W + fu);
             if (!(isfinite(n0) && isfinite(n1) && isfinite(n2) && isfinite(n3))) bad = 1;
             target[2 * i] = fu + s * peak_offset(n0, peak, n1);
             target[2 * i + 1] = fv + s * peak_offset(n2, peak, n3);
@@ -455,12 +492,12 @@ TF_EXPORT int64_t tf_point_search_scaled(
 }
 
 /* Bilinear value at (pu, pv) of a plane; -1 outside the image or if !use. */
-static double bilinear(const float *pl, int W, int H, double pu, double pv, int use, int *bad) {
+static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, int *bad) {
     int ok = use && pu >= 0.0 && pu <= W - 1 && pv >= 0.0 && pv <= H - 1;
     int iu = clampi((int)floor(pu), 0, W - 2), iv = clampi((int)floor(pv), 0, H - 2);
     double fu = fmin(fmax(pu - iu, 0.0), 1.0), fv = fmin(fmax(pv - iv, 0.0), 1.0);
-    const float *r0 = pl + (size_t)iv * W + iu;
-    double t00 = r0[0], t01 = r0[1], t10 = r0[W], t11 = r0[W + 1];
+    const size_t r0 = (size_t)iv * W + iu;
+    double t00 = at(pl, r0), t01 = at(pl, r0 + 1), t10 = at(pl, r0 + W), t11 = at(pl, r0 + W + 1);
     if (!(isfinite(t00) && isfinite(t01) && isfinite(t10) && isfinite(t11))) *bad = 1;
     if (!ok) return -1.0;
     return (1 - fv) * ((1 - fu) * t00 + fu * t01) + fv * ((1 - fu) * t10 + fu * t11);
@@ -470,7 +507,7 @@ static double bilinear(const float *pl, int W, int H, double pu, double pv, int 
  * over s = -L..L steps (a step is `step` px), then one step either side of the best.
  * Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_line_search_scaled(
-    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps,
+    int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
     const int64_t *keyframes, const int64_t *channels, const double *uv, const double *normal,
     const uint8_t *usable, int64_t L, double step, double threshold, double *target,
     uint8_t *found) {
@@ -480,11 +517,11 @@ TF_EXPORT int64_t tf_line_search_scaled(
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(static) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
-        const float *hm = (const float *)(uintptr_t)maps[keyframes[n]];
+        const uint64_t hm = maps[keyframes[n]];
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            const float *pl = hm + (size_t)channels[m] * plane;
+            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
             int use = usable[i];
             double u0 = uv[2 * i], v0 = uv[2 * i + 1];
             double nu = normal[2 * i], nv = normal[2 * i + 1];
@@ -643,25 +680,49 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
     return 0;
 }
 
-/* Value check of heat-map files: the first of N keyframes (float32 arrays of `count`
- * values at the addresses `maps`) holding a value outside [lo, hi] or a NaN, or N if none.
- * One pass over the data on all threads (the caller names the file and value). */
-TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t count,
-                                        double lo, double hi) {
+/* Value check of heat-map files: the first of N keyframes (float32 arrays, or float16 if
+ * `half`, of `count` values at the addresses `maps`) holding a value outside [lo, hi] or a
+ * NaN, or N if none. One pass over the data on all threads (the caller names the file and
+ * value). */
+TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t half,
+                                        int64_t count, double lo, double hi) {
     const float flo = (float)lo, fhi = (float)hi;
+    /* float16: the magnitudes (15 bits) in range for each sign, [a[s], b[s]] (empty if
+     * a > b): a half's value grows with its magnitude bits, and NaNs (above 0x7c00) lie
+     * beyond every range, so the check compares integers */
+    int16_t a0 = 0x7fff, b0 = 0, a1 = 0x7fff, b1 = 0; /* empty unless found below */
+    for (int16_t m = 0; half && m <= 0x7c00; m++) {
+        const float v = half_value((uint16_t)m);
+        if (v >= flo && v <= fhi) { if (a0 > m) a0 = m; b0 = m; }
+        if (-v >= flo && -v <= fhi) { if (a1 > m) a1 = m; b1 = m; }
+    }
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         const float *p = (const float *)(uintptr_t)maps[n];
+        const uint16_t *q = (const uint16_t *)(uintptr_t)maps[n];
         int bad = 0;
-        for (int64_t i = 0; i < count; i++) {
-            const float v = p[i];
-            bad |= !(v >= flo) | !(v <= fhi); /* NaN fails both */
+        if (half) {
+            int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
+            for (int64_t i = 0; i < count; i++) {
+                const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
+                const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
+                const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
+                const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
+                acc |= (int16_t)((m < lo_m) | (m > hi_m));
+            }
+            bad = acc != 0;
+        } else {
+            for (int64_t i = 0; i < count; i++) {
+                const float v = p[i];
+                bad |= !(v >= flo) | !(v <= fhi);
+            }
         }
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? N : first_bad;
 }
+
 
 TF_EXPORT int64_t tf_num_threads(void) {
 #ifdef _OPENMP

@@ -4,7 +4,8 @@ The kernels fuse, per keyframe, what the numpy reference implementation does in 
 vectorised passes: projecting the model, evaluating the heat-map or correspondence cost
 with its gradient and Hessian model, and folding the result into the keyframe's 13 x 13
 normal-equation block; also the correspondence searches and the block-tridiagonal solve.
-They read the heat-maps in place (memory maps included) through one pointer per keyframe.
+They read the heat-maps in place (memory maps included) through one pointer per keyframe,
+float32 or float16 as a flight stores them.
 No library offers these model-specific loops (the solver study measured generic back-ends
 with per-factor Python callbacks 5-30x slower than the vectorised numpy version, which in
 turn spends 130 ms per evaluation of a 1000-keyframe flight on temporaries).
@@ -55,15 +56,15 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_image_terms.restype = _int
     lib.tf_image_terms.argtypes = [
         _int, _int, _f64, _f64, _int, _int, _f64, _f64, _ptr, _ptr, _ptr, _int, _i64, _u64,
-        _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
+        _int, _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
     lib.tf_point_search_scaled.restype = _int
     lib.tf_point_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _i64, _i64, _f64, _u8, _int, _i64, _int, _i64, _int,
-        _int, _dbl, _f64, _u8]
+        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _u8, _int, _i64, _int, _i64,
+        _int, _int, _dbl, _f64, _u8]
     lib.tf_line_search_scaled.restype = _int
     lib.tf_line_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _dbl, _f64,
-        _u8]
+        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _dbl,
+        _f64, _u8]
     lib.tf_block_tridiag_solve.restype = _int
     lib.tf_block_tridiag_solve.argtypes = [_int, _int, _f64, _f64, _f64, _f64]
     lib.tf_project.restype = None
@@ -71,7 +72,7 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_num_threads.restype = _int
     lib.tf_num_threads.argtypes = []
     lib.tf_first_out_of_range.restype = _int
-    lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _dbl, _dbl]
+    lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _int, _dbl, _dbl]
 
 
 _LIB = _load()
@@ -88,14 +89,16 @@ def num_threads() -> int:
     return int(_LIB.tf_num_threads()) if _LIB is not None else 1
 
 
-def first_out_of_range(maps: NDArray[np.uint64], count: int, lo: float, hi: float) -> int:
-    """Index of the first of ``len(maps)`` float32 arrays (``count`` values at each address of
-    ``maps``) holding a NaN or a value outside [``lo``, ``hi``] (compared in float32), or
-    ``len(maps)`` if none; all threads, one pass (``tf_first_out_of_range``). Its numpy twin
-    is :func:`turbinefit.io.heatmap_files.check_heatmap_values` applied in turn."""
+def first_out_of_range(maps: NDArray[np.uint64], half: bool, count: int, lo: float,
+                       hi: float) -> int:
+    """Index of the first of ``len(maps)`` float32 arrays (float16 if ``half``; ``count``
+    values at each address of ``maps``) holding a NaN or a value outside [``lo``, ``hi``]
+    (compared in float32), or ``len(maps)`` if none; all threads, one pass
+    (``tf_first_out_of_range``). Its numpy twin is
+    :func:`turbinefit.io.heatmap_files.check_heatmap_values` applied in turn."""
     assert _LIB is not None
-    return int(_LIB.tf_first_out_of_range(len(maps), _c(maps, np.uint64), int(count),
-                                          float(lo), float(hi)))
+    return int(_LIB.tf_first_out_of_range(len(maps), _c(maps, np.uint64), int(half),
+                                          int(count), float(lo), float(hi)))
 
 
 def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
@@ -115,7 +118,7 @@ def _opt(a: NDArray[Any] | None) -> int | None:
 def image_terms(
     poses: FloatArray, camera_params: FloatArray, width: int, height: int,
     A: FloatArray, B: FloatArray, JA: FloatArray | None, JB: FloatArray | None,
-    frac: FloatArray | None, channels: NDArray[np.int_], maps: NDArray[np.uint64],
+    frac: FloatArray | None, channels: NDArray[np.int_], maps: NDArray[np.uint64], half: bool,
     keyframes: NDArray[np.int_], kind: str, target: FloatArray | None,
     found: NDArray[np.bool_] | None, normal: FloatArray | None, lam: float,
     pixel_sigma: float, margin: float, floor: float, robust: str, robust_scale: float,
@@ -125,7 +128,8 @@ def image_terms(
 
     Points are ``(1 - f) A + f B`` with ``f = frac`` (N, M) (None: f = 0), their theta
     Jacobians ``(1 - f) JA + f JB`` (M, 3, 7). Adds ``J^T H J`` and ``J^T g`` into ``JtHJ``
-    (N, 13, 13) and ``g`` (N, 13) in place. Returns the per-keyframe cost (N,) and the
+    (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: each keyframe's heat-maps' address,
+    float32 or (``half``) float16. Returns the per-keyframe cost (N,) and the
     points in view (N,); raises NonFiniteHeatmapError on a NaN or inf heat-map value."""
     assert _LIB is not None
     N, M = poses.shape[0], A.shape[0]
@@ -141,7 +145,8 @@ def image_terms(
     bad = _LIB.tf_image_terms(
         N, M, _c(poses, np.float64), _c(camera_params, np.float64), width, height,
         _c(A, np.float64), _c(B, np.float64), _opt(JAc), _opt(JBc), _opt(fr), M,
-        _c(channels, np.int64), maps, _c(keyframes, np.int64), 0 if kind == "interp" else 1,
+        _c(channels, np.int64), maps, int(half), _c(keyframes, np.int64),
+        0 if kind == "interp" else 1,
         _opt(tg), _opt(fd), _opt(nm), par, int(with_jacobian),
         None if JtHJ is None else JtHJ.ctypes.data, None if g is None else g.ctypes.data,
         cost, count)
@@ -164,17 +169,18 @@ def project(poses: FloatArray, camera_params: FloatArray, width: int, height: in
 
 
 def point_search(
-    maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, usable: NDArray[np.bool_], radius: int,
     coarse: NDArray[np.int64], fine: NDArray[np.int64], step: int, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Circular-window search (see correspondence.find_point_correspondences)."""
+    """Circular-window search (see correspondence.find_point_correspondences); ``maps`` as
+    for :func:`image_terms`."""
     assert _LIB is not None
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _LIB.tf_point_search_scaled(
-        N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
+        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
     _check(int(bad), keyframes)
@@ -182,18 +188,18 @@ def point_search(
 
 
 def line_search(
-    maps: NDArray[np.uint64], width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, normal: FloatArray,
     usable: NDArray[np.bool_], half_length: int, step: float, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Perpendicular search over ``+-half_length`` steps of ``step`` px (see
-    correspondence.find_line_correspondences)."""
+    correspondence.find_line_correspondences); ``maps`` as for :func:`image_terms`."""
     assert _LIB is not None
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _LIB.tf_line_search_scaled(
-        N, M, width, height, maps, _c(keyframes, np.int64), _c(channels, np.int64),
+        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
         step, threshold, target, found)
     _check(int(bad), keyframes)

@@ -26,7 +26,7 @@ def test_simulate_writes_a_complete_flight_folder(sim_flight_dir: Path) -> None:
     maps = sorted((sim_flight_dir / "heatmaps").iterdir())
     assert [p.name for p in maps] == sorted(f"{x:.6f}.npy" for x in t)
     hm = np.load(maps[0])
-    assert hm.dtype == np.float32 and hm.shape == (7, 120, 160)
+    assert hm.dtype == np.float16 and hm.shape == (7, 120, 160)
     assert np.isfinite(hm).all() and hm.max() > 0.5  # the turbine is in view
     cam = yaml.safe_load((sim_flight_dir / "camera.yaml").read_text())
     assert (cam["image_width"], cam["image_height"]) == (160, 120)
@@ -191,12 +191,14 @@ def test_simulate_vio_writes_body_frame_odometry_that_fit_and_track_use(
 
 def test_simulate_heatmap_size(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "big"
-    rc, _, err = run(capsys, "simulate", str(out), "--keyframes", "2", "--width", "4000",
-                     "--height", "3000", "--quiet")
+    rc, _, err = run(capsys, "simulate", str(out), "--keyframes", "2", "--width", "5280",
+                     "--height", "3956", "--quiet")
     assert rc == 0, err
     cam = yaml.safe_load((out / "camera.yaml").read_text())
-    assert (cam["image_width"], cam["image_height"]) == (4000, 3000)
-    assert np.load(next((out / "heatmaps").iterdir())).shape == (7, 240, 320)
+    assert (cam["image_width"], cam["image_height"]) == (5280, 3956)
+    first = next((out / "heatmaps").iterdir())
+    assert np.load(first).shape == (7, 240, 320)  # a 20 MP camera's maps at 320 px
+    assert first.stat().st_size < 1.1e6  # float16: 1.08 MB a keyframe
     for size, shape in (("200", (7, 150, 200)), ("400x300", (7, 300, 400))):
         rc, _, err = run(capsys, "simulate", str(out), "--keyframes", "2", "--width", "4000",
                          "--height", "3000", "--heatmap-size", size, "--overwrite", "--quiet")

@@ -27,7 +27,13 @@ from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io import heatmap_filename, read_flight, read_heatmaps, read_tum, write_flight, write_tum
 
 
-def assert_flights_equal(a: Flight, b: Flight) -> None:
+def as_written(maps: np.ndarray, dtype: str = "float16") -> np.ndarray:
+    """Heat-maps as a flight folder written as ``dtype`` reads them back (float32)."""
+    return np.asarray(maps).astype(dtype).astype(np.float32)
+
+
+def assert_flights_equal(a: Flight, b: Flight, dtype: str = "float16") -> None:
+    """``a`` read back from a folder ``b`` was written to (heat-maps as ``dtype``)."""
     assert a.camera == b.camera
     np.testing.assert_allclose(a.timestamps, b.timestamps, rtol=0, atol=1e-9)
     assert_poses_close(a.world_T_cam, b.world_T_cam)
@@ -40,34 +46,40 @@ def assert_flights_equal(a: Flight, b: Flight) -> None:
             assert_poses_close(pa, pb)
     assert len(a.heatmaps) == len(b.heatmaps)
     for k in range(len(a.heatmaps)):
-        np.testing.assert_array_equal(a.heatmaps[k], b.heatmaps[k])
+        np.testing.assert_array_equal(a.heatmaps[k], as_written(b.heatmaps[k], dtype))
 
 
+@pytest.mark.parametrize("dtype", ["float16", "float32"])
 @pytest.mark.parametrize("mmap", [True, False])
-def test_flight_round_trip_with_optional_files(tmp_path: Path, mmap: bool) -> None:
+def test_flight_round_trip_with_optional_files(tmp_path: Path, mmap: bool, dtype: str) -> None:
     flight = random_flight(optional=True)
     folder = tmp_path / "flight"
-    assert write_flight(flight, folder) == folder
+    assert write_flight(flight, folder, heatmap_dtype=dtype) == folder  # type: ignore[arg-type]
     names = sorted(p.name for p in folder.iterdir())
     assert names == ["camera.yaml", "groundtruth.txt", "heatmaps", "keyframes.txt",
                      "odometry.txt", "turbine.yaml", "turbine_groundtruth.yaml"]
     assert sorted(p.name for p in (folder / "heatmaps").iterdir()) == sorted(
         heatmap_filename(t) for t in flight.timestamps)
     assert heatmap_filename(flight.timestamps[0]) == "1567000000.123456.npy"
-    assert np.load(folder / "heatmaps" / heatmap_filename(flight.timestamps[0])).dtype == \
-        np.float32
+    assert np.load(folder / "heatmaps" / heatmap_filename(flight.timestamps[0])).dtype == dtype
 
     back = read_flight(folder, mmap=mmap)
-    assert_flights_equal(back, flight)
+    assert_flights_equal(back, flight, dtype)
     assert back.has_ground_truth
     m = back.heatmaps[2]
-    assert m.dtype == np.float32 and m.shape == (7, H, W)
-    assert m.flags.writeable is (not mmap)  # memory maps are read-only
+    # memory maps keep the files' storage (read-only); mmap=False reads into float32
+    assert m.dtype == (dtype if mmap else np.float32) and m.shape == (7, H, W)
+    assert m.flags.writeable is (not mmap)
+    assert back.heatmaps.half is (mmap and dtype == "float16")
+    assert back.heatmaps.pointers() is not None  # the compiled kernels read either
     # the costs' access path works on both storages
     kf = np.array([0, 4])
     idx = np.array([[0, 7 * H * W - 1], [5, 123]])
-    np.testing.assert_array_equal(
-        back.heatmaps.gather(kf, idx), flight.heatmaps.gather(kf, idx))
+    written = HeatmapStack([as_written(flight.heatmaps[k], dtype) for k in range(flight.num_keyframes)])
+    np.testing.assert_array_equal(back.heatmaps.gather(kf, idx), written.gather(kf, idx))
+    if dtype == "float16":  # within float16's rounding of values in [0, 1]
+        np.testing.assert_allclose(back.heatmaps.gather(kf, idx),
+                                   flight.heatmaps.gather(kf, idx), rtol=0, atol=2.5e-4)
     assert leftovers(tmp_path) == []
 
 
@@ -88,7 +100,7 @@ def test_flight_heatmaps_converted_to_float32(tmp_path: Path) -> None:
     f64 = Flight(f32.camera, f32.timestamps, f32.world_T_cam,
                  HeatmapStack([f32.heatmaps[k].astype(np.float64) for k in range(2)]),
                  f32.turbine)
-    write_flight(f64, tmp_path / "f")
+    write_flight(f64, tmp_path / "f", heatmap_dtype="float32")
     back = read_flight(tmp_path / "f")
     assert back.heatmaps[1].dtype == np.float32
     np.testing.assert_array_equal(back.heatmaps[1], f32.heatmaps[1])
@@ -282,7 +294,10 @@ def test_write_flight_overwrite_replaces(tmp_path: Path, flight_dir: Path) -> No
 
 def test_write_flight_overwrite_in_place_from_memory_maps(tmp_path: Path,
                                                           flight_dir: Path) -> None:
+    write_flight(random_flight(optional=True), flight_dir, overwrite=True,
+                 heatmap_dtype="float32")  # memory-mapped on reading
     original = read_flight(flight_dir, mmap=True)
+    assert not original.heatmaps[0].flags.writeable
     changed = Flight(original.camera, original.timestamps, original.world_T_cam,
                      original.heatmaps, tiny_turbine(offset=7.0), original.odometry)
     write_flight(changed, flight_dir, overwrite=True)
@@ -291,7 +306,7 @@ def test_write_flight_overwrite_in_place_from_memory_maps(tmp_path: Path,
     assert back.gt_turbine is None
     expected = random_flight(optional=True)
     for k in range(len(expected.heatmaps)):
-        np.testing.assert_array_equal(back.heatmaps[k], expected.heatmaps[k])
+        np.testing.assert_array_equal(back.heatmaps[k], as_written(expected.heatmaps[k]))
     assert leftovers(tmp_path) == []
 
 

@@ -19,7 +19,7 @@ from turbinefit.solver import FitConfig, fit
 def _reduced_flight(tmp_path: Path) -> tuple[SimConfig, Path]:
     cfg = SimConfig(n_keyframes=12, seed=3, width=640, height=480, heatmap_size=(160, 120))
     folder = tmp_path / "flight"
-    write_flight(simulate_flight(cfg), folder, camera=cfg.camera())
+    write_flight(simulate_flight(cfg), folder, camera=cfg.camera(), heatmap_dtype="float32")
     return cfg, folder
 
 
@@ -46,6 +46,56 @@ def test_reduced_maps_round_trip_with_the_scaled_camera_and_fit(tmp_path: Path) 
     a, b = fit(back, cfg_fit), fit(flight, cfg_fit)
     np.testing.assert_allclose(a.turbine.to_vector(), b.turbine.to_vector(), rtol=1e-8)
     assert a.final_cost < a.initial_cost
+
+
+@pytest.mark.parametrize("native", ["1", "0"])
+def test_float16_files_read_as_their_values_and_fit_as_float32_ones(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, native: str) -> None:
+    monkeypatch.setenv("TURBINEFIT_NATIVE", native)
+    cfg = SimConfig(n_keyframes=12, seed=4)
+    flight = simulate_flight(cfg)
+    write_flight(flight, tmp_path / "half")  # float16 by default
+    write_flight(flight, tmp_path / "full", heatmap_dtype="float32")
+    name = "heatmaps/0.000000.npy"
+    assert np.load(tmp_path / "half" / name).dtype == np.float16
+    assert (tmp_path / "half" / name).stat().st_size * 2 - 128 == \
+        (tmp_path / "full" / name).stat().st_size
+    half, full = read_flight(tmp_path / "half"), read_flight(tmp_path / "full")
+    assert half.heatmaps.half and not full.heatmaps.half
+    for k in range(flight.num_keyframes):
+        assert half.heatmaps[k].dtype == np.float16  # memory-mapped as stored
+        np.testing.assert_array_equal(
+            half.heatmaps[k], full.heatmaps[k].astype(np.float16).astype(np.float32))
+        np.testing.assert_allclose(half.heatmaps[k], full.heatmaps[k], rtol=0, atol=2.5e-4)
+    # the fit of rounded maps: the same as of the exact ones, to well within its accuracy
+    a, b = fit(half, FitConfig()), fit(full, FitConfig())
+    np.testing.assert_allclose(a.world_T_cam.translation, b.world_T_cam.translation,
+                               rtol=0, atol=0.01)
+    np.testing.assert_allclose(a.turbine.to_vector(), b.turbine.to_vector(), rtol=0, atol=0.01)
+    assert a.final_cost < a.initial_cost
+
+
+@pytest.mark.parametrize("native", ["1", "0"])
+def test_a_flight_may_mix_float16_and_float32_files_and_a_bad_float16_value_is_named(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, native: str) -> None:
+    monkeypatch.setenv("TURBINEFIT_NATIVE", native)
+    flight = simulate_flight(SimConfig(n_keyframes=5, seed=2))
+    folder = tmp_path / "f"
+    write_flight(flight, folder, heatmap_dtype="float32")
+    f3 = folder / "heatmaps" / "3.000000.npy"
+    np.save(f3, np.load(f3).astype(np.float16))
+    for mmap in (True, False):
+        back = read_flight(folder, mmap=mmap)  # one storage: float32
+        assert not back.heatmaps.half and back.heatmaps.pointers() is not None
+        for k in range(5):
+            want = np.asarray(flight.heatmaps[k], dtype=np.float16 if k == 3 else np.float32)
+            np.testing.assert_array_equal(back.heatmaps[k], want.astype(np.float32))
+    bad = np.load(f3)
+    bad[6, 10, 20] = np.float16(1.5)
+    np.save(f3, bad)
+    with raises_input_error(f3) as e:
+        read_flight(folder)
+    assert "channel 6 (line_blade) holds 1.5, outside [0, 1]" in str(e.value)
 
 
 def test_write_flight_refuses_a_camera_that_is_not_the_maps_scale(tmp_path: Path) -> None:

@@ -225,6 +225,24 @@ def test_heatmap_stack_of_a_window_is_referenced_not_copied() -> None:
     assert all(np.shares_memory(stack[k], maps[k]) for k in range(2))
 
 
+def test_float16_maps_are_kept_as_float16_and_track_as_their_float32_values() -> None:
+    """Maps from float16 files stay float16 in the window (half the memory, read as such
+    by the kernels) and give the estimates of the same values in float32; a later
+    keyframe of the other storage is converted to the window's."""
+    flight = simulated_flight(12, seed=8)
+    half = [np.asarray(flight.heatmaps[k], dtype=np.float16) for k in range(12)]
+    a, b = Tracker(flight.camera, flight.turbine), Tracker(flight.camera, flight.turbine)
+    for k in range(12):
+        t, pose = flight.timestamps[k], flight.world_T_cam[k]
+        a.update(t, pose, half[k] if k != 5 else half[k].astype(np.float32))
+        b.update(t, pose, half[k].astype(np.float32))
+    assert a._window is not None and a._window.data.heatmaps.half
+    assert a._window.data.heatmaps.pointers() is not None
+    np.testing.assert_allclose(a.world_T_cam().wxyz_xyz, b.world_T_cam().wxyz_xyz,
+                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.turbine.to_vector(), b.turbine.to_vector(), rtol=0, atol=1e-9)
+
+
 def test_auto_pair_frame_follows_the_first_keyframe_and_refuses_mixing() -> None:
     f = simulated_flight(4, seed=1, odometry="vio")
     assert f.odometry is not None

@@ -51,8 +51,9 @@ Flight folder (input of fit and track, output of simulate):
   odometry.txt                optional TUM; its consecutive relative poses are the
                               pairwise measurements (default: those of keyframes.txt)
   turbine.yaml                initial turbine parameters (metres, radians)
-  heatmaps/<t %.6f>.npy       float32 (7, H, W): point_base, point_tower_top, point_hub,
-                              point_blade_tip, line_tower, line_nacelle, line_blade
+  heatmaps/<t %.6f>.npy       float16 or float32 (7, H, W) in [0, 1]: point_base,
+                              point_tower_top, point_hub, point_blade_tip, line_tower,
+                              line_nacelle, line_blade
   images/<t %.6f>.png|.jpg    optional photos; fit detects heat-maps from them when
                               heatmaps/ is absent (or with --from-images)
   groundtruth.txt, turbine_groundtruth.yaml   optional ground truth

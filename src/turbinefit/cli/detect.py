@@ -19,7 +19,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     d: argparse.ArgumentParser = sub.add_parser(
         "detect", help=help,
         description="Run the heat-map CNN on photos (JPEG/PNG, any size). For each photo writes "
-        "OUT_DIR/<stem>.npy, float32 (7, h, w) (channels point_base, point_tower_top, "
+        "OUT_DIR/<stem>.npy, float16 (7, h, w) (channels point_base, point_tower_top, "
         "point_hub, point_blade_tip, line_tower, line_nacelle, line_blade; values in [0, 1]) "
         "at the net's own resolution (160x120 for a 4:3 photo and the shipped model) or "
         "--max-size, and OUT_DIR/<stem>.png, the photo (at most 640 px wide) with the "

@@ -161,8 +161,9 @@ def find_point_correspondences(
     s = max(1, int(step))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
-        return _native.point_search(maps, W, H, keyframes, channels, uv, usable, R,
-                                    _disc_offsets(R, 2 * s), _square5(s), s, threshold)
+        return _native.point_search(maps, heatmaps.half, W, H, keyframes, channels, uv,
+                                    usable, R, _disc_offsets(R, 2 * s), _square5(s), s,
+                                    threshold)
     centre = np.rint(uv).astype(np.int64)
     base = (channels.astype(np.int64) * (H * W))[None, :, None]
     _, bu, bv = _window_max(heatmaps, keyframes, base, centre, _disc_offsets(R, 2 * s),
@@ -230,8 +231,8 @@ def find_line_correspondences(
     L = max(1, round(half_length / st))
     maps = heatmaps.pointers() if _native.available() else None
     if maps is not None:
-        return _native.line_search(maps, W, H, keyframes, channels, uv, normal, usable, L,
-                                   st, threshold)
+        return _native.line_search(maps, heatmaps.half, W, H, keyframes, channels, uv, normal,
+                                   usable, L, st, threshold)
     N, M = uv.shape[:2]
     coarse = np.arange(-L, L + 1, 2, dtype=np.float64) * st
     vc = _profile(heatmaps, keyframes, channels, uv, normal, usable,

@@ -3,6 +3,8 @@
 :class:`HeatmapStack` holds either one in-memory array (N, 7, H, W) or one array per
 keyframe (typically read-only memory maps of ``heatmaps/*.npy``, so that a 1000-keyframe
 flight costs no RAM until pixels are touched); the costs only ever *gather* pixels from it.
+The values are float32, or float16 (half the memory; the compiled kernels read either,
+:attr:`HeatmapStack.half`, and :meth:`HeatmapStack.gather` returns float64 of both).
 Channel order: :mod:`turbinefit.heatmaps.channels`.
 """
 
@@ -30,7 +32,8 @@ class HeatmapStack:
 
     Args:
         maps: an array (N, 7, H, W) or a sequence of N arrays (7, H, W) (e.g. memory maps).
-            Values are used as given (float32 in [0, 1] expected); nothing is copied.
+            Values are used as given (float32 or float16 in [0, 1] expected); nothing is
+            copied.
     """
 
     def __init__(self, maps: NDArray[np.floating] | Sequence[NDArray[np.floating]]) -> None:
@@ -57,7 +60,10 @@ class HeatmapStack:
         arrays = list(self._stacked) if self._stacked is not None else self._list
         # addresses for the compiled kernels (checked once: the arrays are never replaced)
         self._pointers: NDArray[np.uint64] | None = None
-        if all(a.dtype == np.float32 and a.flags.c_contiguous for a in arrays):
+        #: Whether every keyframe's maps are float16 (else :meth:`pointers` are float32's).
+        self.half = all(a.dtype == np.float16 for a in arrays)
+        storage = np.float16 if self.half else np.float32
+        if all(a.dtype == storage and a.flags.c_contiguous for a in arrays):
             self._pointers = np.array([a.ctypes.data for a in arrays], dtype=np.uint64)
 
     def __reduce__(self) -> tuple[type[HeatmapStack], tuple[object]]:
@@ -66,8 +72,9 @@ class HeatmapStack:
         return HeatmapStack, (self._stacked if self._stacked is not None else self._list,)
 
     def pointers(self) -> NDArray[np.uint64] | None:
-        """Address of each keyframe's float32 (7, H, W) data, for the compiled kernels; None
-        unless every keyframe is C-contiguous float32. Valid while this stack lives."""
+        """Address of each keyframe's (7, H, W) data, for the compiled kernels: float32, or
+        float16 if :attr:`half`; None unless every keyframe is C-contiguous and of that
+        one storage. Valid while this stack lives."""
         return self._pointers
 
     def __len__(self) -> int:
@@ -101,12 +108,15 @@ class HeatmapStack:
             shape = (-1,) + (1,) * (flat_index.ndim - 1)
             out = flat[keyframes.reshape(shape).astype(np.int64) * plane + flat_index]
         else:
-            out = np.empty(flat_index.shape, dtype=np.float32)
+            out = np.empty(flat_index.shape, dtype=np.float16 if self.half else np.float32)
             flats = self._flat
             idx = flat_index.reshape(flat_index.shape[0], -1)
             o = out.reshape(idx.shape)
             for row, k in enumerate(keyframes.tolist()):
-                np.take(flats[k], idx[row], out=o[row])
+                if flats[k].dtype == out.dtype:
+                    np.take(flats[k], idx[row], out=o[row])
+                else:  # a stack mixing float16 and float32 keyframes
+                    o[row] = flats[k][idx[row]]
         vals = out.astype(np.float64)
         if not np.all(np.isfinite(vals)):
             bad = np.nonzero(~np.isfinite(vals).reshape(vals.shape[0], -1).all(axis=1))[0][0]

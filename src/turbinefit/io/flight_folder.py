@@ -22,8 +22,9 @@ Layout (names exact)::
   timestamps as ``keyframes.txt`` (each within 1e-6 s).
 * Turbine: metres and radians (see :mod:`turbinefit.io.turbine_yaml`).
 * Heat-maps: ``heatmaps/<timestamp formatted %.6f>.npy`` (e.g. ``12.500000.npy``), a
-  C-ordered little-endian float32 ``.npy`` array (7, h, w), channels in the order of
-  :data:`turbinefit.heatmaps.CHANNEL_NAMES`. Other files in ``heatmaps/`` are ignored.
+  C-ordered little-endian float32 or float16 ``.npy`` array (7, h, w), channels in the
+  order of :data:`turbinefit.heatmaps.CHANNEL_NAMES` (turbinefit writes float16: half the
+  bytes, values to within 2.5e-4). Other files in ``heatmaps/`` are ignored.
   Values must be finite and in [0, 1] (to 1e-3): each file's minimum and maximum per
   channel are checked when it is opened, one pass over its data.
 * Heat-map size: every file of a flight has the same (h, w), read from the first file's
@@ -42,11 +43,13 @@ Layout (names exact)::
   reads the rest, :func:`keyframe_images` finds the photos, and
   :mod:`turbinefit.jobs.sources` detects them.
 
-Reading with ``mmap=True`` (default) maps every heat-map file read-only; only the ``.npy``
-headers are read (one small read per file, identical headers parsed once), so opening a
-1000-keyframe flight takes a few tens of milliseconds and no RAM until pixels are touched.
-Each map holds one open file descriptor (Python < 3.13's ``mmap`` keeps one), so the
-process's soft open-file limit is raised towards the hard limit when a flight needs it.
+Reading with ``mmap=True`` (default) maps every heat-map file read-only; only the
+``.npy`` headers are read (one small read per file, identical headers parsed once), so
+opening a 1000-keyframe flight takes a few tens of milliseconds and no RAM until pixels are
+touched. Each map holds one open file descriptor (Python < 3.13's ``mmap`` keeps one), so
+the process's soft open-file limit is raised towards the hard limit when a flight needs it.
+float16 files are mapped as they are (the compiled kernels read them); a flight mixing
+float16 and float32 files has its float16 ones converted to float32 in memory.
 ``mmap=False`` reads everything into one (N, 7, H, W) float32 array.
 
 Every problem is an :class:`~turbinefit.errors.InputError` naming the file (and line or
@@ -89,6 +92,7 @@ from turbinefit.io.atomic import (
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
 from turbinefit.io.heatmap_files import (
     CAMERA_FILE,
+    HeatmapDtype,
     _kind,
     heatmap_filename,
     keyframe_stem,
@@ -351,14 +355,15 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  extra_texts: Mapping[str, str] | None = None,
                  images: Iterable[NDArray[np.uint8]] | None = None,
                  camera: PinholeCamera | None = None,
-                 overwrite_hint: str = OVERWRITE_HINT) -> Path:
+                 overwrite_hint: str = OVERWRITE_HINT,
+                 heatmap_dtype: HeatmapDtype = "float16") -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
     place at the end; on any error nothing changes and no temporary files remain.
 
     Args:
-        flight: the flight; heat-maps are written as float32 (converted if needed), one
+        flight: the flight; heat-maps are written as ``heatmap_dtype`` (converted), one
             ``np.save`` per keyframe. Optional files are written when present.
         folder: destination. Missing parents are created. An existing empty directory is
             replaced. An existing non-empty directory is refused with an
@@ -379,6 +384,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
             ``flight.camera`` must be ``camera`` scaled to them (:func:`scaled_camera`),
             so that reading the folder back gives the same flight.
         overwrite_hint: ends the message refusing a non-empty folder.
+        heatmap_dtype: ``float16`` (default: half the bytes of float32, values to within
+            2.5e-4) or ``float32`` (the values exactly).
 
     Returns:
         The folder written.
@@ -387,6 +394,9 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
         InputError: naming the destination (file) for unwritable data or I/O failures.
     """
     root = Path(folder)
+    if heatmap_dtype not in ("float16", "float32"):
+        raise ValueError(f"heatmap_dtype must be float16 or float32, got {heatmap_dtype!r}")
+    dtype = np.dtype(heatmap_dtype).newbyteorder("<")
     n = flight.num_keyframes
     photo_camera = camera or flight.camera
     if not _same_camera(scaled_camera(photo_camera, flight.camera.width, flight.camera.height),
@@ -428,7 +438,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
         hm_dir = tmp / HEATMAP_DIR
         hm_dir.mkdir()
         for k, t in enumerate(flight.timestamps.tolist()):
-            arr = np.ascontiguousarray(flight.heatmaps[k], dtype=np.float32)
+            arr = np.ascontiguousarray(flight.heatmaps[k], dtype=dtype)
             if arr.shape != shape:  # pragma: no cover - HeatmapStack guarantees it
                 raise InputError(f"heat-map {k} has shape {arr.shape}, expected {shape}",
                                  path=root / HEATMAP_DIR / heatmap_filename(t))

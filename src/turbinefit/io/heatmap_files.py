@@ -1,7 +1,8 @@
 """Heat-map files of a flight folder: ``heatmaps/<t>.npy`` opened by their headers.
 
-:func:`read_heatmaps` maps (or reads) one float32 (7, h, w) ``.npy`` per keyframe, every
-file of the same size (given, or that of the first file, at least
+:func:`read_heatmaps` maps (or reads) one float32 or float16 (7, h, w) ``.npy`` per
+keyframe (float16: half the bytes, read as they are by the compiled kernels), every file
+of the same size (given, or that of the first file, at least
 :data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side), only regular files
 (:func:`~turbinefit.io.limits.open_input`), each checked finite and in [0, 1]
 (:func:`check_heatmap_values`: one minimum and maximum per channel); :func:`scaled_camera` is the
@@ -18,6 +19,7 @@ import math
 import os
 import stat
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.lib import format as npy_format
@@ -35,8 +37,12 @@ CAMERA_FILE = "camera.yaml"
 #: Heat-map values may lie this far outside [0, 1] (rounding of a resize or of float16).
 VALUE_TOLERANCE = 1e-3
 
+#: How heat-map files are stored: float16 (what turbinefit writes) or float32.
+HeatmapDtype = Literal["float16", "float32"]
+
 _NPY_MAGIC = b"\x93NUMPY"
 _HEATMAP_DTYPE = np.dtype("<f4")
+_HALF_DTYPE = np.dtype("<f2")
 
 
 def keyframe_stem(timestamp: float) -> str:
@@ -91,8 +97,9 @@ def _read_npy_header(f: io.RawIOBase, fname: str,
 def _check_heatmap(header: _Header, offset: int, size: int, shape: tuple[int, ...],
                    fname: str, first: str | None) -> None:
     got_shape, fortran, dtype = header
-    if dtype != _HEATMAP_DTYPE:
-        raise InputError(f"dtype {dtype.str}, expected float32 (<f4)", path=Path(fname))
+    if dtype not in (_HEATMAP_DTYPE, _HALF_DTYPE):
+        raise InputError(f"dtype {dtype.str}, expected float32 (<f4) or float16 (<f2)",
+                         path=Path(fname))
     if got_shape != shape:
         why = ("7 channels x image_height x image_width" if first is None else
                f"every heat-map of a flight has the size of the first, {first}")
@@ -146,7 +153,9 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
         timestamps: (N,) keyframe timestamps [s].
         height, width: expected map size [px]; None = that of the first file (the others
             must have it too).
-        mmap: map files read-only (default) or load all into one (N, 7, H, W) array.
+        mmap: map files read-only (default; a flight mixing float16 and float32 files has
+            its float16 ones converted to float32 in memory) or load all into one float32
+            (N, 7, H, W) array.
         keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
 
     Raises:
@@ -170,8 +179,8 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                          "share a heat-map file", path=keyframes_file or folder)
     cache: dict[bytes, _Header] = {}
     stacked = None
-    to_check: list[tuple[str, int]] = []
-    maps: list[NDArray[np.float32]] = []
+    maps: list[NDArray[np.floating]] = []
+    mapped: list[tuple[NDArray[np.floating], str, int]] = []  # (map, file, data offset)
     if mmap:
         _raise_open_file_limit(len(names) + 64)
     base = os.fspath(folder)
@@ -195,46 +204,55 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
                     stacked = np.empty((len(names), *shape), dtype=np.float32)
                 if stacked is None:
                     mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
-                    maps.append(np.ndarray(shape, dtype=_HEATMAP_DTYPE, buffer=mm, offset=offset))
-                    to_check.append((fname, offset))
+                    maps.append(np.ndarray(shape, dtype=header[2], buffer=mm, offset=offset))
+                    mapped.append((maps[-1], fname, offset))
                 else:
                     f.seek(offset)
-                    _read_into(f, stacked[k], fname)
+                    _read_into(f, stacked[k], fname, header[2])
                     check_heatmap_values(stacked[k], fname)
             except OSError as e:
                 raise _os_error(e, len(names), fname) from e
+    if len({m.dtype for m in maps}) > 1:  # float16 and float32 files: float32 in memory
+        for j, (m, fname, _) in enumerate(mapped):
+            if m.dtype == _HALF_DTYPE:
+                maps[j] = m.astype(np.float32)
+                check_heatmap_values(maps[j], fname)
+        mapped = [item for item in mapped if item[0].dtype == _HEATMAP_DTYPE]
     stack = HeatmapStack(stacked if stacked is not None else maps)
-    if to_check:
-        _check_mapped_values(stack, to_check, shape, len(names))
+    if mapped:
+        _check_mapped_values(mapped, shape, len(names))
     return stack
 
 
-def _check_mapped_values(stack: HeatmapStack, files: list[tuple[str, int]],
+def _check_mapped_values(mapped: list[tuple[NDArray[np.floating], str, int]],
                          shape: tuple[int, ...], total: int) -> None:
-    """:func:`check_heatmap_values` of the memory-mapped files ``(name, data offset)`` of
-    ``stack``; the first bad file in keyframe order is the error. With the compiled
-    kernels, one pass over the maps themselves on all threads
+    """:func:`check_heatmap_values` of memory-mapped files ``(map, name, data offset)``,
+    all float32 or all float16; the first bad file in keyframe order is the error. With
+    the compiled kernels, one pass over the maps themselves on all threads
     (:func:`turbinefit._native.first_out_of_range`; the pages it faults in are the ones the
     solver reads next), the message from :func:`check_heatmap_values` of the file it
     names; else each file is read into a scratch buffer on a few threads (faster in numpy
     than two reductions over its memory map)."""
     from turbinefit import _native
 
-    pointers = stack.pointers()
-    if _native.available() and pointers is not None:
+    half = mapped[0][0].dtype == _HALF_DTYPE
+    if _native.available():
+        pointers = np.array([m.ctypes.data for m, _, _ in mapped], dtype=np.uint64)
         lo, hi = -VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE
         start = 0
         while start < len(pointers):
-            k = start + _native.first_out_of_range(pointers[start:], math.prod(shape), lo, hi)
+            k = start + _native.first_out_of_range(pointers[start:], half, math.prod(shape),
+                                                   lo, hi)
             if k < len(pointers):
-                check_heatmap_values(stack[k], files[k][0])  # raises, naming the value
+                check_heatmap_values(mapped[k][0], mapped[k][1])  # raises, naming the value
             start = k + 1
         return
-    _read_mapped_values(files, shape, total)
+    _read_mapped_values([(name, offset) for _, name, offset in mapped], shape, total,
+                        _HALF_DTYPE if half else _HEATMAP_DTYPE)
 
 
 def _read_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
-                        total: int) -> None:
+                        total: int, dtype: np.dtype) -> None:
     """The numpy value check of memory-mapped files: each read into a scratch buffer (faster
     than faulting in every page of its map for two reductions), on a few threads (reading
     and the reductions release the GIL)."""
@@ -247,7 +265,7 @@ def _read_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
         fname, offset = item
         buf = getattr(scratch, "buf", None)
         if buf is None:
-            buf = scratch.buf = np.empty(shape, dtype=np.float32)
+            buf = scratch.buf = np.empty(shape, dtype=dtype)
         try:
             with open_input(fname) as f:  # still a regular file, not waited on if not
                 f.seek(offset)
@@ -266,8 +284,15 @@ def _read_mapped_values(files: list[tuple[str, int]], shape: tuple[int, ...],
             pass
 
 
-def _read_into(f: io.RawIOBase, out: NDArray[np.float32], fname: str) -> None:
-    """Fill ``out`` from ``f``'s current position."""
+def _read_into(f: io.RawIOBase, out: NDArray[np.floating], fname: str,
+               dtype: np.dtype | None = None) -> None:
+    """Fill ``out`` from ``f``'s current position, whose values are ``dtype`` (default:
+    ``out``'s; float16 is converted)."""
+    if dtype is not None and dtype != out.dtype:
+        buf = np.empty(out.shape, dtype=dtype)
+        _read_into(f, buf, fname)
+        out[...] = buf
+        return
     view = memoryview(out.data).cast("B")
     done = 0
     while done < view.nbytes:

@@ -73,7 +73,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
                   detect_options: DetectOptions | None = None,
                   max_size: int | None = None) -> DetectReport:
     """Detect heat-maps in photos (files, or folders of ``.png`` / ``.jpg``) and write, per
-    photo, ``<stem>.npy`` (float32 (7, h, w), :func:`output_size`, channels of
+    photo, ``<stem>.npy`` (float16 (7, h, w), :func:`output_size`, channels of
     :data:`turbinefit.heatmaps.CHANNEL_NAMES`) and ``<stem>.png`` (the photo with the
     heat-maps overlaid, at most :data:`OVERLAY_WIDTH` px wide) into ``out_dir``,
     atomically.
@@ -113,7 +113,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
             picture = encode_png(overlay(resize_image(img, *ov), maps), compress_level=1)
             try:
                 with open(tmp / f"{p.stem}.npy", "wb") as f:
-                    np.save(f, maps, allow_pickle=False)
+                    np.save(f, maps.astype(np.float16), allow_pickle=False)
                 (tmp / f"{p.stem}.png").write_bytes(picture)
             except OSError as e:
                 raise write_error(e, out / p.stem) from e

@@ -36,8 +36,8 @@ def simulate_folder(
     With ``images``, photos of every keyframe rendered from the ground truth
     (:func:`turbinefit.sim.images.render_flight_images`, scene from the seed) go to
     ``images/<t>.png``. ``camera.yaml`` is the photos' camera (:meth:`SimConfig.camera`),
-    the heat-maps are at their own size (:attr:`SimConfig.heatmap_size`: by default at
-    most 320 px wide whatever the camera).
+    the heat-maps (float16 files) are at their own size (:attr:`SimConfig.heatmap_size`:
+    by default at most 320 px wide whatever the camera).
 
     The whole folder, ``simulation.yaml`` included, is written atomically. ``out_dir`` is
     checked before simulating: a file or symbolic link is refused, and an existing
@@ -69,6 +69,8 @@ MAX_KEYFRAMES = 1_000_000
 #: Bytes of memory per heat-map pixel and keyframe: 7 float32 channels (measured with
 #: ``ru_maxrss``: 27.7 per pixel for 200 and 2000 keyframes of 320 x 240 maps).
 HEATMAP_BYTES_PER_PX = 28
+#: Bytes written per heat-map pixel and keyframe: 7 float16 channels.
+HEATMAP_FILE_BYTES_PER_PX = 14
 #: Peak working memory of rendering one photo, per photo pixel (measured 146-170 bytes
 #: at 1280 x 960 and 2560 x 1920; photos are rendered and written one at a time).
 PHOTO_WORK_BYTES_PER_PX = 200
@@ -94,7 +96,8 @@ def simulation_estimate(cfg: SimConfig, images: bool = False) -> SimulationEstim
     maps = cfg.n_keyframes * HEATMAP_BYTES_PER_PX * hm.width * hm.height
     photo_px = cfg.width * cfg.height
     memory = BASE_BYTES + maps + (PHOTO_WORK_BYTES_PER_PX * photo_px if images else 0)
-    disk = maps + (int(PNG_BYTES_PER_PX * photo_px) * cfg.n_keyframes if images else 0)
+    disk = (cfg.n_keyframes * HEATMAP_FILE_BYTES_PER_PX * hm.width * hm.height
+            + (int(PNG_BYTES_PER_PX * photo_px) * cfg.n_keyframes if images else 0))
     return SimulationEstimate(int(memory), int(disk))
 
 

@@ -373,7 +373,8 @@ class FitProblem:
         cam = self.data.camera
         cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
-            smp.JA, smp.JB, smp.f, channels, maps, keyframes, kind, target, found, normal, lam,
+            smp.JA, smp.JB, smp.f, channels, maps, self.data.heatmaps.half, keyframes, kind,
+            target, found, normal, lam,
             cfg.px("pixel_sigma"), cfg.px("border_margin"), cfg.heatmap_floor, cfg.robust,
             cfg.robust_scale, JtHJ is not None, JtHJ, g)
         return float(cost.sum()), int(count.sum())

@@ -263,6 +263,9 @@ class Tracker:
                              else np.asarray(self.config.theta_sigma, dtype=np.float64))
         # every keyframe so far
         self._times: list[float] = []
+        #: Storage of the window's heat-maps: that of the first keyframe's, float32 or
+        #: float16 (as a flight's files store them; the kernels read either), one for all.
+        self._map_dtype: type[np.floating] | None = None
         self._final: list[SE3 | None] = []
         self.estimates: list[TrackEstimate] = []
         """The causal estimate of every keyframe, in arrival order."""
@@ -336,10 +339,12 @@ class Tracker:
         shape = (NUM_CHANNELS, self.camera.height, self.camera.width)
         if maps.shape != shape:
             raise KeyframeError(k, f"heat-maps have shape {maps.shape}, expected {shape}")
-        if maps.dtype != np.float32 or not maps.flags.c_contiguous:
-            maps = np.ascontiguousarray(maps, dtype=np.float32)
+        dtype = self._map_dtype or (np.float16 if maps.dtype == np.float16 else np.float32)
+        if maps.dtype != dtype or not maps.flags.c_contiguous:
+            maps = np.ascontiguousarray(maps, dtype=dtype)
         if not math.isfinite(float(maps.sum(dtype=np.float64))):  # float64: cannot overflow
             raise KeyframeError(k, "heat-maps contain NaN or inf")
+        self._map_dtype = dtype
         return maps
 
     def _fixed(self) -> NDArray[np.bool_]:
@@ -397,7 +402,8 @@ class Tracker:
             world_T_cam: its GPS/IMU (initial) camera-to-world pose: the measurement
                 without odometry; with, the starting point of the first keyframe and
                 the anchor of ``gauge="gps"``.
-            heatmaps: (7, H, W) float32 heat-maps at the camera's size.
+            heatmaps: (7, H, W) heat-maps at the camera's size (kept as float16 if the
+                first keyframe's are float16, else as float32).
             odometry: its odometry pose (e.g. the flight's odometry.txt): the relative
                 poses of consecutive odometry poses are then the pairwise measurements.
                 Given for every keyframe or for none; the first keyframe decides
