@@ -92,6 +92,7 @@ from turbinefit.io.atomic import (
 from turbinefit.io.camera_yaml import format_camera_yaml, read_camera_yaml
 from turbinefit.io.heatmap_files import (
     CAMERA_FILE,
+    WRITTEN_HEATMAP_DTYPE,
     HeatmapDtype,
     _kind,
     heatmap_filename,
@@ -356,7 +357,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  images: Iterable[NDArray[np.uint8]] | None = None,
                  camera: PinholeCamera | None = None,
                  overwrite_hint: str = OVERWRITE_HINT,
-                 heatmap_dtype: HeatmapDtype = "float16") -> Path:
+                 heatmap_dtype: HeatmapDtype = WRITTEN_HEATMAP_DTYPE) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into

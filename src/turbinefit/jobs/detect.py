@@ -24,6 +24,7 @@ from turbinefit.detect import DetectOptions, HeatmapDetector, overlay, unique_st
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import reduced_size
 from turbinefit.io.atomic import write_error
+from turbinefit.io.heatmap_files import WRITTEN_HEATMAP_DTYPE
 from turbinefit.io.images import (
     encode_png,
     image_size,
@@ -113,7 +114,7 @@ def detect_images(inputs: list[Path], out_dir: str | os.PathLike[str],
             picture = encode_png(overlay(resize_image(img, *ov), maps), compress_level=1)
             try:
                 with open(tmp / f"{p.stem}.npy", "wb") as f:
-                    np.save(f, maps.astype(np.float16), allow_pickle=False)
+                    np.save(f, maps.astype(WRITTEN_HEATMAP_DTYPE), allow_pickle=False)
                 (tmp / f"{p.stem}.png").write_bytes(picture)
             except OSError as e:
                 raise write_error(e, out / p.stem) from e

@@ -12,11 +12,14 @@ import dataclasses
 import os
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from turbinefit import __version__
 from turbinefit.errors import InputError
+from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.io.flight_folder import SIMULATION_FILE, check_flight_destination, write_flight
+from turbinefit.io.heatmap_files import WRITTEN_HEATMAP_DTYPE
 from turbinefit.io.limits import MIN_IMAGE_SIDE, check_image_size, human_bytes
 from turbinefit.io.yaml_files import plain
 from turbinefit.jobs.outputs import OVERWRITE_HINT
@@ -69,8 +72,8 @@ MAX_KEYFRAMES = 1_000_000
 #: Bytes of memory per heat-map pixel and keyframe: 7 float32 channels (measured with
 #: ``ru_maxrss``: 27.7 per pixel for 200 and 2000 keyframes of 320 x 240 maps).
 HEATMAP_BYTES_PER_PX = 28
-#: Bytes written per heat-map pixel and keyframe: 7 float16 channels.
-HEATMAP_FILE_BYTES_PER_PX = 14
+#: Bytes written per heat-map pixel and keyframe: 7 channels as heat-map files store them.
+HEATMAP_FILE_BYTES_PER_PX = NUM_CHANNELS * np.dtype(WRITTEN_HEATMAP_DTYPE).itemsize
 #: Peak working memory of rendering one photo, per photo pixel (measured 146-170 bytes
 #: at 1280 x 960 and 2560 x 1920; photos are rendered and written one at a time).
 PHOTO_WORK_BYTES_PER_PX = 200
