@@ -30,6 +30,15 @@ blade photos what it shows, from looking at each photo: ``blade`` (the boxed bla
 most the nacelle or hub at the frame's edge) or ``tower-too`` (the tower or another
 turbine in view as well). The figures are then also given per view, with the share of the
 line mass in the tower channel.
+
+What the boxes cannot give, a figure of the line mass on the turbine wherever it is in
+view, ``--parts`` (default ``benchmarks/real_blade_parts.csv``, ``filename,part,polygon``)
+adds for the ``tower-too`` photos: an outline of each turbine part in view that the box
+leaves out (``tower``, ``nacelle``, ``blade``, ``other-turbine``), a polygon ``x y x y ...``
+in photo px (pixel edges) drawn by hand from looking at each photo on a 64-px grid (to
+about 10-20 px). The line mass inside the grown box or any part (each part grown by 2 map
+px, as the renders' true lines below) is then given per view, and over the photos of
+``--views``.
 """
 
 from __future__ import annotations
@@ -44,8 +53,8 @@ from pathlib import Path
 import numpy as np
 from common import DATA, HERE, RESULTS, write_json
 
-from turbinefit.detect import DetectOptions, DetectorPool
-from turbinefit.eval.regions import bottom_rows
+from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
+from turbinefit.eval.regions import bottom_rows, box_region, grow_box, line_mass_inside
 from turbinefit.heatmaps.channels import CHANNEL_NAMES
 from turbinefit.io.images import read_image
 from turbinefit.jobs.evaluate import evaluate_regions
@@ -53,6 +62,10 @@ from turbinefit.jobs.evaluate import evaluate_regions
 CLASSES = ("turbine", "blade")
 #: What each blade photo shows (see the module docstring).
 VIEWS = HERE / "real_blade_views.csv"
+#: The turbine parts the blade photos' boxes leave out (see the module docstring).
+PARTS = HERE / "real_blade_parts.csv"
+#: Parts are grown by this many map px before scoring.
+PART_GROW_PX = 2
 TOWER_LINE = CHANNEL_NAMES.index("line_tower")
 #: Photo rows [px of the photo] of the bottom-rows artefact.
 BOTTOM_PX = 40
@@ -87,22 +100,59 @@ def renders_of_each_shape(n: int, model: Path | None) -> None:
               f"{np.mean(whole):.3f}")
 
 
+def read_parts(path: Path) -> dict[str, list[list[float]]]:
+    """``filename`` -> polygons (x y x y ... [photo px]) of ``path`` (``--parts``)."""
+    parts: dict[str, list[list[float]]] = {}
+    with open(path, newline="") as f:
+        for line, r in enumerate(csv.DictReader(f), start=2):
+            xy = [float(v) for v in r["polygon"].split()]
+            if len(xy) < 6 or len(xy) % 2:
+                sys.exit(f"{path}:{line}: polygon needs three or more x y pairs")
+            parts.setdefault(r["filename"], []).append(xy)
+    return parts
+
+
+def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
+               polygons: list[list[float]]) -> float:
+    """Share of ``maps``' line mass inside ``row``'s box (grown as ``evaluate`` grows it)
+    or any of ``polygons`` (grown by :data:`PART_GROW_PX` map px)."""
+    from PIL import Image, ImageDraw
+    from scipy import ndimage
+
+    (pw, ph), (h, w) = photo_size, maps.shape[1:]
+    box = grow_box(tuple(float(v) for v in row[4:8]), 0.05, pw, ph)  # type: ignore[arg-type]
+    region = box_region([box], photo_size, (w, h))
+    if polygons:
+        img = Image.new("L", (w, h), 0)
+        draw = ImageDraw.Draw(img)
+        for xy in polygons:
+            draw.polygon([(xy[i] * w / pw, xy[i + 1] * h / ph) for i in range(0, len(xy), 2)],
+                         fill=1)
+        region |= ndimage.binary_dilation(np.asarray(img) > 0, iterations=PART_GROW_PX)
+    return line_mass_inside(maps, region)
+
+
 def per_view(views_csv: Path, rows: list[list[str]], inside: dict[str, float],
-             tower_share: dict[str, float]) -> dict[str, dict[str, float]]:
-    """The blade photos' line mass inside the box and share in the tower channel, per
-    view of ``views_csv`` (photos it does not list are left out); printed."""
+             tower_share: dict[str, float], turbine: dict[str, float]
+             ) -> dict[str, dict[str, float]]:
+    """The blade photos' line mass inside the box, on the turbine (box or parts) and share
+    in the tower channel, per view of ``views_csv`` and over all the photos it lists
+    (photos it does not list are left out); printed."""
     with open(views_csv, newline="") as f:
         views = {r["filename"]: r["view"] for r in csv.DictReader(f)}
     out: dict[str, dict[str, float]] = {}
-    for view in sorted(set(views.values())):
-        names = [r[0] for r in rows if r[3] == "blade" and views.get(r[0]) == view]
+    for view in [*sorted(set(views.values())), "all listed"]:
+        names = [r[0] for r in rows if r[3] == "blade"
+                 and (views.get(r[0]) == view or (view == "all listed" and r[0] in views))]
         if not names:
             continue
         out[view] = {"photos": len(names),
                      "line_mass_inside": float(np.mean([inside[n] for n in names])),
+                     "line_mass_on_turbine": float(np.mean([turbine[n] for n in names])),
                      "tower_channel_share": float(np.mean([tower_share[n] for n in names]))}
-        print(f"blade photos showing {view:9s} {len(names):3d}: line mass inside the box "
-              f"{out[view]['line_mass_inside']:.3f}, in the tower channel "
+        print(f"blade photos showing {view:10s} {len(names):3d}: line mass inside the box "
+              f"{out[view]['line_mass_inside']:.3f}, on the turbine (box or parts) "
+              f"{out[view]['line_mass_on_turbine']:.3f}, in the tower channel "
               f"{out[view]['tower_channel_share']:.3f}")
     return out
 
@@ -121,6 +171,9 @@ def main() -> None:
                     help="also N held-out renders of each shape (square, 3:2, 16:9, 3:4)")
     ap.add_argument("--views", type=Path, default=VIEWS,
                     help="CSV filename,view: what each blade photo shows (figures per view)")
+    ap.add_argument("--parts", type=Path, default=PARTS,
+                    help="CSV filename,part,polygon: the turbine parts in view that the "
+                         "blade photos' boxes leave out (line mass on the turbine)")
     args = ap.parse_args()
     if args.renders > 0:
         renders_of_each_shape(args.renders, args.model)
@@ -138,11 +191,11 @@ def main() -> None:
         boxes = Path(tmp) / "boxes.csv"
         boxes.write_text("".join(",".join(r) + "\n" for r in rows))
         scaled = args.input_scale != 1.0
+        options = DetectOptions(zoom=False, input_scale=args.input_scale) if scaled else None
         rep = evaluate_regions(root / "images", boxes=boxes, model=args.model,
                                out=Path(tmp) / "report.json",
                                sheet=DATA / "real_worst.png", overwrite=True, progress=True,
-                               detect_options=DetectOptions(zoom=False, input_scale=args.input_scale)
-                               if scaled else None)
+                               detect_options=options)
         inside = {Path(p["photo"]).name: p["line_mass_inside"]
                   for p in json.loads((Path(tmp) / "report.json").read_text())["photos"]}
     model = Path(rep.model)
@@ -155,27 +208,30 @@ def main() -> None:
               f"5 % {m['line_mass_inside']:.3f}, turbine found {m['found']:.1%}, point peaks "
               f"outside {int(m['peaks_outside'])} of {int(m['peaks'])}")
 
-    pool = DetectorPool(args.model)
+    pool = DetectorPool(args.model, options=options)
+    parts = read_parts(args.parts) if args.parts.is_file() else {}
 
-    def maps(det, row):  # type: ignore[no-untyped-def]
+    def maps(det: HeatmapDetector, row: list[str]) -> tuple[tuple[int, int], np.ndarray]:
         img = read_image(root / "images" / row[3] / row[0])
-        return img.shape[0], det.detect_small(img)
+        return (img.shape[0], img.shape[1]), det.detect_small(img)
 
     artefact = {}
     tower_share: dict[str, float] = {}
+    turbine: dict[str, float] = {}
     for cls in CLASSES:
         mine = [r for r in rows if r[3] == cls]
-        out = list(pool.map(maps, mine))
-        pairs = [bottom_rows(m, round(BOTTOM_PX * m.shape[1] / h)) for h, m in out]
+        found = list(pool.map(maps, mine))
+        pairs = [bottom_rows(hm, round(BOTTOM_PX * hm.shape[1] / hw[0])) for hw, hm in found]
         bottom, whole = (float(np.mean(x)) for x in zip(*pairs, strict=True))
         artefact[cls] = {"bottom_rows": bottom, "whole_map": whole}
         print(f"{cls:8s} bottom {BOTTOM_PX} rows' line mean {bottom:.3f}, whole map {whole:.3f}")
-        for r, (_, m) in zip(mine, out, strict=True):
-            total = float(m[TOWER_LINE:].sum())
-            tower_share[r[0]] = float(m[TOWER_LINE].sum()) / total if total > 0 else 0.0
+        for r, ((ph, pw), hm) in zip(mine, found, strict=True):
+            total = float(hm[TOWER_LINE:].sum())
+            tower_share[r[0]] = float(hm[TOWER_LINE].sum()) / total if total > 0 else 0.0
+            turbine[r[0]] = on_turbine(hm, r, (pw, ph), parts.get(r[0], []))
     result["bottom_rows"] = artefact
     if args.views.is_file():
-        result["views"] = per_view(args.views, rows, inside, tower_share)
+        result["views"] = per_view(args.views, rows, inside, tower_share, turbine)
     out = RESULTS / (f"bench_real_x{args.input_scale:g}.json" if scaled else "bench_real.json")
     write_json(out, result)
     print(f"wrote {out}; worst photos: {DATA / 'real_worst.png'}")
