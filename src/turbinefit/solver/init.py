@@ -45,6 +45,7 @@ from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
+from turbinefit.heatmaps.peaks import strongest_peaks
 from turbinefit.turbine.model import BLADE_PERIOD, HEADING_PERIOD, TurbineParams
 
 FloatArray = NDArray[np.float64]
@@ -169,47 +170,6 @@ class InitResult:
 
 # ----------------------------------------------------------------------------- peaks
 
-def find_peaks(maps: NDArray[np.floating], threshold: float, max_peaks: int
-               ) -> list[tuple[FloatArray, FloatArray]]:
-    """Local maxima of each point channel of one keyframe's maps (7, H, W).
-
-    Returns, per point channel (4), ``(uv (P, 2), value (P,))``: pixels of the maxima
-    above ``threshold`` (3 x 3 neighbourhood, sub-pixel by a parabola along each axis),
-    the strongest ``max_peaks`` first.
-    """
-    out = []
-    m = np.asarray(maps[:4], dtype=np.float32)
-    for c in range(4):
-        ch = m[c]
-        cand = ch > threshold
-        cand[0, :] = cand[-1, :] = False
-        cand[:, 0] = cand[:, -1] = False
-        ii, jj = np.nonzero(cand)
-        if ii.size == 0:
-            out.append((np.zeros((0, 2)), np.zeros(0)))
-            continue
-        v = ch[ii, jj]
-        is_max = np.ones(ii.size, dtype=bool)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di or dj:
-                    nb = ch[ii + di, jj + dj]
-                    # strict on one side so that a flat top gives one peak
-                    is_max &= (v > nb) if (di, dj) < (0, 0) else (v >= nb)
-        ii, jj, v = ii[is_max], jj[is_max], v[is_max].astype(np.float64)
-        order = np.argsort(-v)[:max_peaks]
-        ii, jj, v = ii[order], jj[order], v[order]
-        l, r = ch[ii, jj - 1].astype(np.float64), ch[ii, jj + 1].astype(np.float64)
-        u_, d_ = ch[ii - 1, jj].astype(np.float64), ch[ii + 1, jj].astype(np.float64)
-        den_u = l - 2 * v + r
-        den_v = u_ - 2 * v + d_
-        du = np.where(den_u < -1e-9, 0.5 * (l - r) / np.where(den_u < -1e-9, den_u, -1.0), 0.0)
-        dv = np.where(den_v < -1e-9, 0.5 * (u_ - d_) / np.where(den_v < -1e-9, den_v, -1.0), 0.0)
-        uv = np.stack([jj + np.clip(du, -0.5, 0.5), ii + np.clip(dv, -0.5, 0.5)], axis=-1)
-        out.append((uv.astype(np.float64), v))
-    return out
-
-
 def normalized_rays(camera: PinholeCamera, uv: FloatArray) -> FloatArray:
     """Camera-frame unit directions (P, 3) of pixels (P, 2), distortion removed (fixed
     point iterations of the plumb_bob model)."""
@@ -235,8 +195,9 @@ def peak_rays(heatmaps: HeatmapStack, camera: PinholeCamera, world_T_cam: SE3,
     point channel: base, tower top, hub, tip)."""
     per: list[list[tuple[int, FloatArray, FloatArray]]] = [[], [], [], []]
     for k in keyframes.tolist():
-        for c, (uv, v) in enumerate(find_peaks(heatmaps[k], options.peak_threshold,
-                                               options.max_peaks)):
+        maps = heatmaps[k]
+        for c in range(len(per)):
+            uv, v = strongest_peaks(maps[c], options.peak_threshold, options.max_peaks)
             if len(v):
                 per[c].append((k, uv, v))
     R = world_T_cam.rotation_matrix()
