@@ -108,10 +108,17 @@ def test_evaluate_bad_input_is_one_clear_error(labelled: Path, tmp_path: Path, b
 @pytest.fixture(scope="module")
 def boxed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two rendered 320x240 photos with a box round each turbine's heat-map targets
-    (CSV and COCO) and masks of them."""
+    (CSV and COCO), masks of them, and COCO outlines (each visible part's targets'
+    convex hull)."""
+    from scipy import ndimage
+    from scipy.spatial import ConvexHull
+
     root = tmp_path_factory.mktemp("boxed")
     spec = DatasetSpec(20, seed=12, closeup_fraction=0.0)  # whole turbines
-    rows, coco_images, coco_anns = [], [], []
+    rows: list[str] = []
+    coco_images: list[dict] = []
+    coco_anns: list[dict] = []
+    outlines: list[dict] = []
     (root / "masks").mkdir()
     for i in range(20):
         s = render_sample(spec, i)
@@ -127,19 +134,31 @@ def boxed(tmp_path_factory: pytest.TempPathFactory) -> Path:
         rows.append(f"{name},320,240,turbine,{box[0]},{box[1]},{box[2]},{box[3]}")
         coco_images.append({"id": len(coco_images) + 1, "file_name": name, "width": 320,
                             "height": 240})
+        bbox = [int(box[0]), int(box[1]), int(box[2] - box[0]), int(box[3] - box[1])]
         coco_anns.append({"id": len(coco_anns) + 1, "image_id": len(coco_images),
-                          "category_id": 1, "bbox": [int(box[0]), int(box[1]),
-                                                     int(box[2] - box[0]), int(box[3] - box[1])]})
+                          "category_id": 1, "bbox": bbox})
+        parts, n = ndimage.label(on)
+        for k in range(1, n + 1):  # the outline of each separate part, in photo px
+            pi, pj = np.nonzero(parts == k)
+            corners = np.concatenate([np.stack([2 * pj + a, 2 * pi + b], axis=-1)
+                                      for a in (0, 2) for b in (0, 2)])
+            hull = corners[ConvexHull(corners).vertices].astype(float)
+            outlines.append({"id": len(outlines) + 1, "image_id": len(coco_images),
+                             "category_id": 1, "bbox": bbox,
+                             "segmentation": [hull.ravel().tolist()]})
         if len(rows) == 2:
             break
     (root / "boxes.csv").write_text("\n".join(rows) + "\n")
     (root / "boxes.json").write_text(json.dumps({
         "images": coco_images, "annotations": coco_anns,
         "categories": [{"id": 1, "name": "turbine"}]}))
+    (root / "outlines.json").write_text(json.dumps({
+        "images": coco_images, "annotations": outlines,
+        "categories": [{"id": 1, "name": "turbine"}]}))
     return root
 
 
-@pytest.mark.parametrize("labels", ["boxes.csv", "boxes.json", "masks"])
+@pytest.mark.parametrize("labels", ["boxes.csv", "boxes.json", "outlines.json", "masks"])
 def test_evaluate_boxes_and_masks(boxed: Path, labels: str, tmp_path: Path,
                                   capsys: pytest.CaptureFixture[str]) -> None:
     report, sheet = tmp_path / "r.json", tmp_path / "worst.png"
@@ -151,7 +170,7 @@ def test_evaluate_boxes_and_masks(boxed: Path, labels: str, tmp_path: Path,
     m = json.loads(report.read_text())["metrics"]
     assert m["overall"]["photos"] == 2 and m["turbine"]["found"] == 1.0
     assert m["turbine"]["line_mass_inside"] > 0.8  # the shipped net on its own renders
-    if labels == "masks":
+    if labels in ("masks", "outlines.json"):
         assert m["turbine"]["skeleton_covered"] > 0.5
     else:
         assert m["turbine"]["skeleton_covered"] is None
@@ -190,3 +209,32 @@ def test_evaluate_regions_bad_input(boxed: Path, tmp_path: Path, case: str, word
                        "--out", str(report))
     assert_one_line_error(rc, out, err, *map(re.escape, words))
     assert not report.exists()
+
+
+@pytest.mark.parametrize("case, words", [
+    ("rle", ["outlines.json", "annotations[0].segmentation", "run-length encoded"]),
+    ("outside", ["outlines.json", "annotations[0].segmentation",
+                 "polygon 0 reaches outside its 320x240 image"]),
+    ("odd", ["outlines.json", "annotations[0].segmentation", "polygon 0: expected"]),
+    ("not a list", ["outlines.json", "annotations[0].segmentation", "a list of polygons"]),
+])
+def test_evaluate_outlines_bad_input(boxed: Path, tmp_path: Path, case: str, words: list[str],
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    coco = json.loads((boxed / "outlines.json").read_text())
+    seg = coco["annotations"][0]["segmentation"]
+    if case == "rle":
+        coco["annotations"][0]["segmentation"] = {"size": [240, 320], "counts": "abc"}
+    elif case == "outside":
+        seg[0][0] = 400.0
+    elif case == "odd":
+        seg[0] = seg[0][:5]
+    else:
+        coco["annotations"][0]["segmentation"] = "p0"
+    bad = tmp_path / "outlines.json"
+    bad.write_text(json.dumps(coco))
+    before = bad.read_text()
+    report = tmp_path / "r.json"
+    rc, out, err = run(capsys, "evaluate", "--boxes", str(bad), "--images-dir", str(boxed),
+                       "--quiet", "--out", str(report))
+    assert_one_line_error(rc, out, err, *map(re.escape, words))
+    assert not report.exists() and bad.read_text() == before

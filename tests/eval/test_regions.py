@@ -13,6 +13,7 @@ from turbinefit.eval.regions import (
     grow_box,
     line_mass_inside,
     mask_region,
+    polygon_region,
     skeleton,
     skeleton_covered,
 )
@@ -35,6 +36,27 @@ def test_box_region_takes_map_pixels_whose_centres_are_inside() -> None:
     assert np.array_equal(np.flatnonzero(r.any(axis=1)), [1, 2])       # centres 15, 25
     assert grow_box((20.0, 10.0, 50.0, 30.0), 0.1, 100, 50) == (17.0, 8.0, 53.0, 32.0)
     assert grow_box((0.0, 0.0, 100.0, 50.0), 0.1, 100, 50) == (0.0, 0.0, 100.0, 50.0)
+
+
+def test_polygon_region_fills_the_pixels_whose_centres_are_inside() -> None:
+    # a rectangle outline is the mask of its pixels (pixel edges: x 20-50, y 10-30)
+    mask = np.zeros((50, 100), dtype=bool)
+    mask[10:30, 20:50] = True
+    rect = (20.0, 10.0, 50.0, 10.0, 50.0, 30.0, 20.0, 30.0)
+    assert np.array_equal(polygon_region([rect], (100, 50), (100, 50)), mask)
+    assert np.array_equal(polygon_region([rect], (100, 50), (10, 5)),
+                          mask_region(mask, (10, 5)))
+    # a right triangle (0, 0)-(40, 0)-(0, 40) at a quarter scale: the map pixels wholly
+    # inside (i + j <= 8 of 10 x 10) are in, those beyond the diagonal out (the diagonal's
+    # own pixels are half covered)
+    tri = polygon_region([(0.0, 0.0, 40.0, 0.0, 0.0, 40.0)], (40, 40), (10, 10))
+    ii, jj = np.mgrid[0:10, 0:10]
+    assert tri[ii + jj <= 8].all() and not tri[ii + jj >= 10].any()
+    # two outlines: their union; none: nothing
+    two = polygon_region([rect, (60.0, 0.0, 70.0, 0.0, 70.0, 10.0, 60.0, 10.0)], (100, 50),
+                         (100, 50))
+    assert two.sum() == mask.sum() + 100
+    assert not polygon_region([], (100, 50), (10, 5)).any()
 
 
 def test_a_perfect_map_scores_one_and_a_background_map_zero() -> None:

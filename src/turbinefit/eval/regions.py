@@ -81,6 +81,25 @@ def mask_region(mask: NDArray[np.bool_], map_size: tuple[int, int]) -> BoolMap:
     return np.asarray(im.resize((w, h), Image.Resampling.BOX)) >= 0.5
 
 
+def polygon_region(polygons: list[tuple[float, ...]], photo_size: tuple[int, int],
+                   map_size: tuple[int, int], samples: int = 4) -> BoolMap:
+    """(h, w) boolean map of the map pixels at least half covered by any of ``polygons``
+    ((x1, y1, x2, y2, ...) in photo px, pixel edges) of a photo of ``photo_size`` (W, H),
+    as :func:`mask_region` treats a mask; coverage is counted on ``samples`` x ``samples``
+    points a map pixel (matplotlib's point-in-polygon test)."""
+    from matplotlib.path import Path as Outline
+
+    (pw, ph), (w, h) = photo_size, map_size
+    u = (np.arange(w * samples) + 0.5) * (pw / (w * samples))
+    v = (np.arange(h * samples) + 0.5) * (ph / (h * samples))
+    points = np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
+    inside = np.zeros(len(points), dtype=bool)
+    for xy in polygons:
+        inside |= Outline(np.reshape(np.asarray(xy, dtype=np.float64), (-1, 2))).contains_points(points)
+    cover = inside.reshape(h, samples, w, samples).mean(axis=(1, 3))
+    return cover >= 0.5
+
+
 def skeleton(region: BoolMap) -> BoolMap:
     """One-pixel-wide skeleton of a boolean region (Zhang and Suen's thinning, 1984:
     boundary pixels are peeled in two alternating sub-iterations, each removing those

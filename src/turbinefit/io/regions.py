@@ -13,10 +13,14 @@ photo found on disk and every box checked before anything is returned:
   one photo and must agree on its size. The photo is ``images_dir / filename``, or, if
   there is none, ``images_dir / class / filename`` (a folder per class, as public data
   sets ship them).
-* **COCO boxes** (:func:`read_coco_boxes`): ``images`` (``id``, ``file_name``, ``width``,
-  ``height``), ``annotations`` (``image_id``, ``category_id``, ``bbox`` = ``[x, y, w, h]``,
-  pixel edges), ``categories`` (``id``, ``name``: the class); photos resolved as
-  :mod:`turbinefit.io.coco` does. An image without annotations is a negative (no turbine).
+* **COCO boxes and outlines** (:func:`read_coco_boxes`): ``images`` (``id``,
+  ``file_name``, ``width``, ``height``), ``annotations`` (``image_id``, ``category_id``,
+  ``bbox`` = ``[x, y, w, h]``, pixel edges, and, where the labelling tool exported them,
+  ``segmentation`` polygons ``[[x1, y1, x2, y2, ...], ...]``, which then stand for the
+  annotation instead of its box), ``categories`` (``id``, ``name``: the class); photos
+  resolved as :mod:`turbinefit.io.coco` does. An image without annotations is a negative
+  (no turbine). Run-length-encoded segmentations (COCO's RLE, ``iscrowd``) are refused
+  with a line saying so: export polygons, or masks.
 * **Masks** (:func:`read_mask_folder`): a folder of label PNGs, ``<stem>.png`` the mask of
   the photo ``images_dir / <stem>.*`` (PNG or JPEG); any value above 0 is turbine. The
   mask's size must be its photo's (checked by the job from the headers,
@@ -32,6 +36,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,6 +62,8 @@ class RegionLabel:
             mask or a negative.
         mask: the mask PNG, or None.
         where: file and row the label came from, for messages (``boxes.csv:12``).
+        polygons: (class, (x1, y1, x2, y2, ...)) of each outline (COCO ``segmentation``),
+            pixel edges.
     """
 
     path: Path
@@ -64,13 +71,21 @@ class RegionLabel:
     boxes: tuple[tuple[str, Box], ...] = ()
     mask: Path | None = None
     where: str = ""
+    polygons: tuple[tuple[str, tuple[float, ...]], ...] = ()
 
     @property
     def classes(self) -> tuple[str, ...]:
-        """The classes of its boxes in first-seen order (``("turbine",)`` for a mask)."""
+        """The classes of its boxes and outlines in first-seen order (``("turbine",)`` for
+        a mask)."""
         if self.mask is not None:
             return ("turbine",)
-        return tuple(dict.fromkeys(c for c, _ in self.boxes))
+        return tuple(dict.fromkeys(c for c, _ in (*self.boxes, *self.polygons)))
+
+    @property
+    def outlined(self) -> bool:
+        """Whether the label outlines the turbine (a mask, or outlines and no boxes), so
+        that the region's skeleton is the turbine's."""
+        return self.mask is not None or (bool(self.polygons) and not self.boxes)
 
     def check_size(self, width: int, height: int, mask_size: tuple[int, int] | None = None
                    ) -> None:
@@ -145,8 +160,35 @@ def read_box_csv(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
             for ph, size, boxes, where in out.values()]
 
 
+def _polygons(seg: Any, size: tuple[int, int], error: Callable[[str], InputError]
+              ) -> list[tuple[float, ...]]:
+    """The outlines of a COCO ``segmentation`` (a list of polygons), each checked;
+    ``error`` makes the exception of a message (naming the file and field)."""
+    if isinstance(seg, dict):
+        raise error("is run-length encoded (RLE); turbinefit reads polygon outlines: export "
+                    "polygons, or give the masks as PNGs with --masks")
+    if not isinstance(seg, list):
+        raise error("expected a list of polygons [[x1, y1, x2, y2, ...], ...]")
+    out = []
+    w, h = size
+    for n, poly in enumerate(seg):
+        if not (isinstance(poly, list) and len(poly) >= 6 and len(poly) % 2 == 0
+                and all(isinstance(v, int | float) and not isinstance(v, bool) for v in poly)):
+            raise error(f"polygon {n}: expected [x1, y1, x2, y2, x3, y3, ...] (three or more "
+                        "points)")
+        xy = tuple(float(v) for v in poly)
+        if not all(math.isfinite(v) for v in xy):
+            raise error(f"polygon {n} has a non-finite coordinate")
+        if not (all(0 <= x <= w for x in xy[0::2]) and all(0 <= y <= h for y in xy[1::2])):
+            raise error(f"polygon {n} reaches outside its {w}x{h} image")
+        out.append(xy)
+    return out
+
+
 def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
-    """Photos and boxes of a COCO file's ``bbox`` annotations (module docstring)."""
+    """Photos, boxes and outlines of a COCO file's annotations (module docstring): an
+    annotation with ``segmentation`` polygons is outlined by them, one without by its
+    ``bbox``."""
     from turbinefit.io.coco import _find_image, _load_json, _Reader
 
     p, d = Path(path), Path(images_dir)
@@ -166,6 +208,7 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
     cats = {c.get("id"): str(c.get("name", c.get("id")))
             for c in r.list_of(top, "categories") if isinstance(c, dict)}
     images: dict[Any, tuple[Path, tuple[int, int], list[tuple[str, Box]], str]] = {}
+    outlines: dict[Any, list[tuple[str, tuple[float, ...]]]] = {}
     for i, im in enumerate(r.list_of(top, "images")):
         f = f"images[{i}]"
         w, h = num(im, "width", f), num(im, "height", f)
@@ -182,6 +225,18 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
             raise r.error("image_id matches no image", f)
         if a.get("category_id") not in cats:
             raise r.error("category_id matches no category", f)
+        seg = a.get("segmentation")
+        if seg not in (None, []):
+            size = images[a["image_id"]][1]
+            field = f"{f}.segmentation"
+
+            def error(message: str, field: str = field) -> InputError:
+                return r.error(message, field)
+
+            polys = _polygons(seg, size, error)
+            outlines.setdefault(a["image_id"], []).extend(
+                (cats[a["category_id"]], xy) for xy in polys)
+            continue
         bb = a.get("bbox")
         if not (isinstance(bb, list) and len(bb) == 4
                 and all(isinstance(v, int | float) and not isinstance(v, bool) for v in bb)):
@@ -192,8 +247,8 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
         boxes.append((cats[a["category_id"]], box))
     if not images:
         raise InputError("no images in the file", path=p)
-    return [RegionLabel(ph, size, tuple(boxes), None, where)
-            for ph, size, boxes, where in images.values()]
+    return [RegionLabel(ph, size, tuple(boxes), None, where, tuple(outlines.get(i, ())))
+            for i, (ph, size, boxes, where) in images.items()]
 
 
 def read_mask_folder(masks_dir: StrPath, images_dir: StrPath) -> list[RegionLabel]:

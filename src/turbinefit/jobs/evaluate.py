@@ -157,10 +157,11 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                      threads: int | None = None,
                      detect_options: DetectOptions | None = None) -> RegionReport:
     """Figures of the ONNX ``model`` (default: shipped) on photos labelled with boxes (a
-    CSV or COCO ``bbox`` file, ``boxes``) or masks (a folder of label PNGs, ``masks``;
-    :mod:`turbinefit.io.regions`), per class and overall (:mod:`turbinefit.eval.regions`:
-    line mass inside the box grown by ``grow`` of its size on each side, or the mask;
-    the mask's skeleton covered; photos where anything is found; point peaks outside),
+    CSV, or a COCO file whose ``bbox`` or ``segmentation`` polygons are read, ``boxes``)
+    or masks (a folder of label PNGs, ``masks``; :mod:`turbinefit.io.regions`), per class
+    and overall (:mod:`turbinefit.eval.regions`: line mass inside the box grown by
+    ``grow`` of its size on each side, or the outline or mask; the skeleton of outlines
+    and masks covered; photos where anything is found; point peaks outside),
     and, with ``out``, a JSON report (also each photo's figures) and, with ``sheet``, a
     PNG contact sheet of the ``worst`` photos (least line mass inside) with their
     heat-maps and regions (white) overlaid.
@@ -172,7 +173,13 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
     from tqdm import tqdm
 
     from turbinefit.detect import overlay
-    from turbinefit.eval.regions import RegionStats, box_region, grow_box, mask_region
+    from turbinefit.eval.regions import (
+        RegionStats,
+        box_region,
+        grow_box,
+        mask_region,
+        polygon_region,
+    )
     from turbinefit.geometry.camera import reduced_size
     from turbinefit.io.atomic import write_bytes_atomic
     from turbinefit.io.images import check_image, encode_png, read_image
@@ -202,7 +209,10 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
     def region(lab: RegionLabel, size: tuple[int, int], map_wh: tuple[int, int]) -> np.ndarray:
         if lab.mask is not None:
             return mask_region(read_image(lab.mask).max(axis=2) > 0, map_wh)
-        return box_region([grow_box(b, grow, *size) for _, b in lab.boxes], size, map_wh)
+        reg = box_region([grow_box(b, grow, *size) for _, b in lab.boxes], size, map_wh)
+        if lab.polygons:
+            reg |= polygon_region([xy for _, xy in lab.polygons], size, map_wh)
+        return reg
 
     def run(d: HeatmapDetector, job: tuple[RegionLabel, tuple[int, int]]
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,7 +226,7 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                                                    desc="evaluating", unit="img",
                                                    disable=None if progress else True),
                                         strict=True):
-        stats.add(str(lab.path), lab.classes, maps, reg, mask=lab.mask is not None)
+        stats.add(str(lab.path), lab.classes, maps, reg, mask=lab.outlined)
     summary = stats.summary()
     if sheet_path is not None:
         tiles, captions = [], []
