@@ -54,7 +54,13 @@ import numpy as np
 from common import DATA, HERE, RESULTS, write_json
 
 from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
-from turbinefit.eval.regions import bottom_rows, box_region, grow_box, line_mass_inside
+from turbinefit.eval.regions import (
+    bottom_rows,
+    box_region,
+    grow_box,
+    line_mass_inside,
+    polygon_region,
+)
 from turbinefit.heatmaps.channels import CHANNEL_NAMES
 from turbinefit.io.images import read_image
 from turbinefit.jobs.evaluate import evaluate_regions
@@ -115,20 +121,16 @@ def read_parts(path: Path) -> dict[str, list[list[float]]]:
 def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
                polygons: list[list[float]]) -> float:
     """Share of ``maps``' line mass inside ``row``'s box (grown as ``evaluate`` grows it)
-    or any of ``polygons`` (grown by :data:`PART_GROW_PX` map px)."""
-    from PIL import Image, ImageDraw
+    or any of ``polygons`` (as ``evaluate`` reads outlines, grown by :data:`PART_GROW_PX`
+    map px)."""
     from scipy import ndimage
 
     (pw, ph), (h, w) = photo_size, maps.shape[1:]
     box = grow_box(tuple(float(v) for v in row[4:8]), 0.05, pw, ph)  # type: ignore[arg-type]
     region = box_region([box], photo_size, (w, h))
     if polygons:
-        img = Image.new("L", (w, h), 0)
-        draw = ImageDraw.Draw(img)
-        for xy in polygons:
-            draw.polygon([(xy[i] * w / pw, xy[i + 1] * h / ph) for i in range(0, len(xy), 2)],
-                         fill=1)
-        region |= ndimage.binary_dilation(np.asarray(img) > 0, iterations=PART_GROW_PX)
+        parts = polygon_region([tuple(xy) for xy in polygons], photo_size, (w, h))
+        region |= ndimage.binary_dilation(parts, iterations=PART_GROW_PX)
     return line_mass_inside(maps, region)
 
 
