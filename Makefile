@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet torch==$(TORCH)
-	$(BIN)/pip install --quiet -e '.[dev,train,ros]'
+	$(BIN)/pip install --quiet -e '.[dev,train,ros,coco]'
 	touch $(STAMP)
 
 ## demo: render a 200-keyframe flight with photos, detect heat-maps with the shipped CNN,

@@ -13,7 +13,7 @@ from support import assert_one_line_error, assert_valid_png, photo_px, run
 
 from turbinefit.cli import main
 from turbinefit.io.coco import LabelledImage, TurbineKeypoints, write_coco_keypoints
-from turbinefit.io.images import write_png
+from turbinefit.io.images import read_image, write_png
 from turbinefit.sim.dataset import DatasetSpec, render_sample
 
 
@@ -155,12 +155,36 @@ def boxed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (root / "outlines.json").write_text(json.dumps({
         "images": coco_images, "annotations": outlines,
         "categories": [{"id": 1, "name": "turbine"}]}))
+    # the masks as COCO run-length encodings (the coco extra): the first compressed, the
+    # second not
+    try:
+        from pycocotools import mask as coco_mask
+    except ImportError:
+        return root
+    rles = []
+    for n, im in enumerate(coco_images):
+        m = read_image(root / "masks" / im["file_name"]).max(axis=2) > 0
+        if n == 0:
+            rle = coco_mask.encode(np.asfortranarray(m.astype(np.uint8)))
+            seg = {"size": rle["size"], "counts": rle["counts"].decode("ascii")}
+        else:  # runs of 0s and 1s in column-major order, starting with 0s
+            flat = m.T.ravel().astype(np.int8)
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], flat, [1 - flat[-1]]])))
+            seg = {"size": [240, 320], "counts": np.diff(np.concatenate([[0], edges])).tolist()}
+        rles.append({"id": n + 1, "image_id": im["id"], "category_id": 1, "iscrowd": 1,
+                     "bbox": coco_anns[n]["bbox"], "segmentation": seg})
+    (root / "rle.json").write_text(json.dumps({
+        "images": coco_images, "annotations": rles,
+        "categories": [{"id": 1, "name": "turbine"}]}))
     return root
 
 
-@pytest.mark.parametrize("labels", ["boxes.csv", "boxes.json", "outlines.json", "masks"])
+@pytest.mark.parametrize("labels", ["boxes.csv", "boxes.json", "outlines.json", "rle.json",
+                                    "masks"])
 def test_evaluate_boxes_and_masks(boxed: Path, labels: str, tmp_path: Path,
                                   capsys: pytest.CaptureFixture[str]) -> None:
+    if not (boxed / labels).exists():
+        pytest.skip("RLE needs the coco extra (pycocotools)")
     report, sheet = tmp_path / "r.json", tmp_path / "worst.png"
     opt = "--masks" if labels == "masks" else "--boxes"
     assert main(["evaluate", opt, str(boxed / labels), "--images-dir", str(boxed), "--quiet",
@@ -170,7 +194,7 @@ def test_evaluate_boxes_and_masks(boxed: Path, labels: str, tmp_path: Path,
     m = json.loads(report.read_text())["metrics"]
     assert m["overall"]["photos"] == 2 and m["turbine"]["found"] == 1.0
     assert m["turbine"]["line_mass_inside"] > 0.8  # the shipped net on its own renders
-    if labels in ("masks", "outlines.json"):
+    if labels in ("masks", "outlines.json", "rle.json"):
         assert m["turbine"]["skeleton_covered"] > 0.5
     else:
         assert m["turbine"]["skeleton_covered"] is None
@@ -212,7 +236,10 @@ def test_evaluate_regions_bad_input(boxed: Path, tmp_path: Path, case: str, word
 
 
 @pytest.mark.parametrize("case, words", [
-    ("rle", ["outlines.json", "annotations[0].segmentation", "run-length encoded"]),
+    ("rle size", ["outlines.json", "annotations[0].segmentation",
+                  "RLE size [100, 100] is not its image's [height, width] [240, 320]"]),
+    ("rle counts", ["outlines.json", "annotations[0].segmentation",
+                    "RLE counts add up to 76799, not the image's 76800 pixels"]),
     ("outside", ["outlines.json", "annotations[0].segmentation",
                  "polygon 0 reaches outside its 320x240 image"]),
     ("odd", ["outlines.json", "annotations[0].segmentation", "polygon 0: expected"]),
@@ -222,8 +249,10 @@ def test_evaluate_outlines_bad_input(boxed: Path, tmp_path: Path, case: str, wor
                                      capsys: pytest.CaptureFixture[str]) -> None:
     coco = json.loads((boxed / "outlines.json").read_text())
     seg = coco["annotations"][0]["segmentation"]
-    if case == "rle":
-        coco["annotations"][0]["segmentation"] = {"size": [240, 320], "counts": "abc"}
+    if case == "rle size":
+        coco["annotations"][0]["segmentation"] = {"size": [100, 100], "counts": [10000]}
+    elif case == "rle counts":
+        coco["annotations"][0]["segmentation"] = {"size": [240, 320], "counts": [76000, 799]}
     elif case == "outside":
         seg[0][0] = 400.0
     elif case == "odd":

@@ -38,7 +38,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     labels.add_argument("--boxes", type=Path, metavar="BOXES.csv|BOXES.json",
                         help="boxes: a CSV filename,width,height,class,xmin,ymin,xmax,ymax "
                         "(pixel edges; header optional) or a COCO file with bbox annotations "
-                        "(segmentation polygons, where given, outline the turbine instead)")
+                        "(segmentation polygons or RLE masks, where given, outline the turbine instead)")
     labels.add_argument("--masks", type=Path, metavar="DIR",
                         help="masks: a folder of label PNGs <stem>.png of the photos "
                         "<stem>.* in --images-dir (any value > 0 = turbine)")

@@ -17,10 +17,11 @@ photo found on disk and every box checked before anything is returned:
   ``file_name``, ``width``, ``height``), ``annotations`` (``image_id``, ``category_id``,
   ``bbox`` = ``[x, y, w, h]``, pixel edges, and, where the labelling tool exported them,
   ``segmentation`` polygons ``[[x1, y1, x2, y2, ...], ...]``, which then stand for the
-  annotation instead of its box), ``categories`` (``id``, ``name``: the class); photos
-  resolved as :mod:`turbinefit.io.coco` does. An image without annotations is a negative
-  (no turbine). Run-length-encoded segmentations (COCO's RLE, ``iscrowd``) are refused
-  with a line saying so: export polygons, or masks.
+  annotation instead of its box, or a run-length-encoded mask, COCO's RLE ``{"size": [h,
+  w], "counts": ...}``, compressed or not, decoded by pycocotools, the ``coco`` extra),
+  ``categories`` (``id``, ``name``: the class); photos resolved as
+  :mod:`turbinefit.io.coco` does. An image without annotations is a negative (no
+  turbine).
 * **Masks** (:func:`read_mask_folder`): a folder of label PNGs, ``<stem>.png`` the mask of
   the photo ``images_dir / <stem>.*`` (PNG or JPEG); any value above 0 is turbine. The
   mask's size must be its photo's (checked by the job from the headers,
@@ -36,10 +37,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, read_text
@@ -64,6 +69,8 @@ class RegionLabel:
         where: file and row the label came from, for messages (``boxes.csv:12``).
         polygons: (class, (x1, y1, x2, y2, ...)) of each outline (COCO ``segmentation``),
             pixel edges.
+        rles: (class, RLE) of each run-length-encoded mask (COCO ``segmentation``;
+            :func:`decode_rle`).
     """
 
     path: Path
@@ -72,6 +79,7 @@ class RegionLabel:
     mask: Path | None = None
     where: str = ""
     polygons: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    rles: tuple[tuple[str, dict[str, Any]], ...] = ()
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -79,13 +87,13 @@ class RegionLabel:
         a mask)."""
         if self.mask is not None:
             return ("turbine",)
-        return tuple(dict.fromkeys(c for c, _ in (*self.boxes, *self.polygons)))
+        return tuple(dict.fromkeys(c for c, _ in (*self.boxes, *self.polygons, *self.rles)))
 
     @property
     def outlined(self) -> bool:
         """Whether the label outlines the turbine (a mask, or outlines and no boxes), so
         that the region's skeleton is the turbine's."""
-        return self.mask is not None or (bool(self.polygons) and not self.boxes)
+        return self.mask is not None or (bool(self.polygons or self.rles) and not self.boxes)
 
     def check_size(self, width: int, height: int, mask_size: tuple[int, int] | None = None
                    ) -> None:
@@ -160,15 +168,55 @@ def read_box_csv(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
             for ph, size, boxes, where in out.values()]
 
 
+def decode_rle(rle: dict[str, Any]) -> NDArray[np.bool_]:
+    """The (h, w) mask of a COCO run-length encoding (``counts`` a list, or COCO's
+    compressed string), by pycocotools (the ``coco`` extra)."""
+    from pycocotools import mask as coco_mask
+
+    h, w = rle["size"]
+    counts = rle["counts"]
+    if isinstance(counts, str):
+        obj = {"size": [h, w], "counts": counts.encode("ascii")}
+    else:
+        obj = coco_mask.frPyObjects({"size": [h, w], "counts": list(counts)}, h, w)
+    with warnings.catch_warnings():  # pycocotools 2.0's numpy-2 deprecation, not ours
+        warnings.filterwarnings("ignore", category=DeprecationWarning, module="pycocotools")
+        return np.asarray(coco_mask.decode(obj), dtype=bool)
+
+
+def _rle(seg: dict[str, Any], size: tuple[int, int], error: Callable[[str], InputError]
+         ) -> dict[str, Any]:
+    """A COCO RLE, checked (its size the image's, its counts whole and adding up)."""
+    w, h = size
+    hw = seg.get("size")
+    if hw != [h, w]:
+        raise error(f"RLE size {hw!r} is not its image's [height, width] [{h}, {w}]")
+    counts = seg.get("counts")
+    if isinstance(counts, list):
+        if not all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in counts):
+            raise error("RLE counts must be whole numbers of at least 0")
+        if sum(counts) != h * w:
+            raise error(f"RLE counts add up to {sum(counts)}, not the image's {h * w} pixels")
+    elif not (isinstance(counts, str) and counts.isascii() and counts):
+        raise error("RLE counts must be a list of whole numbers or COCO's compressed string")
+    try:
+        mask = decode_rle({"size": [h, w], "counts": counts})
+    except ImportError:
+        raise error("is run-length encoded (RLE), which needs pycocotools: "
+                    "pip install 'turbinefit[coco]'") from None
+    except Exception as e:  # pycocotools' own complaint about a malformed string
+        raise error(f"cannot decode the RLE: {e}") from None
+    if mask.shape != (h, w):
+        raise error(f"RLE decodes to {mask.shape[1]}x{mask.shape[0]}, not {w}x{h}")
+    return {"size": [h, w], "counts": counts}
+
+
 def _polygons(seg: Any, size: tuple[int, int], error: Callable[[str], InputError]
               ) -> list[tuple[float, ...]]:
     """The outlines of a COCO ``segmentation`` (a list of polygons), each checked;
     ``error`` makes the exception of a message (naming the file and field)."""
-    if isinstance(seg, dict):
-        raise error("is run-length encoded (RLE); turbinefit reads polygon outlines: export "
-                    "polygons, or give the masks as PNGs with --masks")
     if not isinstance(seg, list):
-        raise error("expected a list of polygons [[x1, y1, x2, y2, ...], ...]")
+        raise error("expected a list of polygons [[x1, y1, x2, y2, ...], ...] or an RLE")
     out = []
     w, h = size
     for n, poly in enumerate(seg):
@@ -209,6 +257,7 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
             for c in r.list_of(top, "categories") if isinstance(c, dict)}
     images: dict[Any, tuple[Path, tuple[int, int], list[tuple[str, Box]], str]] = {}
     outlines: dict[Any, list[tuple[str, tuple[float, ...]]]] = {}
+    rles: dict[Any, list[tuple[str, dict[str, Any]]]] = {}
     for i, im in enumerate(r.list_of(top, "images")):
         f = f"images[{i}]"
         w, h = num(im, "width", f), num(im, "height", f)
@@ -233,9 +282,12 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
             def error(message: str, field: str = field) -> InputError:
                 return r.error(message, field)
 
-            polys = _polygons(seg, size, error)
-            outlines.setdefault(a["image_id"], []).extend(
-                (cats[a["category_id"]], xy) for xy in polys)
+            cls = cats[a["category_id"]]
+            if isinstance(seg, dict):
+                rles.setdefault(a["image_id"], []).append((cls, _rle(seg, size, error)))
+            else:
+                outlines.setdefault(a["image_id"], []).extend(
+                    (cls, xy) for xy in _polygons(seg, size, error))
             continue
         bb = a.get("bbox")
         if not (isinstance(bb, list) and len(bb) == 4
@@ -247,7 +299,8 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
         boxes.append((cats[a["category_id"]], box))
     if not images:
         raise InputError("no images in the file", path=p)
-    return [RegionLabel(ph, size, tuple(boxes), None, where, tuple(outlines.get(i, ())))
+    return [RegionLabel(ph, size, tuple(boxes), None, where, tuple(outlines.get(i, ())),
+                        tuple(rles.get(i, ())))
             for i, (ph, size, boxes, where) in images.items()]
 
 

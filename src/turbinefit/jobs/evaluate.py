@@ -157,7 +157,8 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                      threads: int | None = None,
                      detect_options: DetectOptions | None = None) -> RegionReport:
     """Figures of the ONNX ``model`` (default: shipped) on photos labelled with boxes (a
-    CSV, or a COCO file whose ``bbox`` or ``segmentation`` polygons are read, ``boxes``)
+    CSV, or a COCO file whose ``bbox`` or ``segmentation`` (polygons or RLE) are read,
+    ``boxes``)
     or masks (a folder of label PNGs, ``masks``; :mod:`turbinefit.io.regions`), per class
     and overall (:mod:`turbinefit.eval.regions`: line mass inside the box grown by
     ``grow`` of its size on each side, or the outline or mask; the skeleton of outlines
@@ -183,7 +184,7 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
     from turbinefit.geometry.camera import reduced_size
     from turbinefit.io.atomic import write_bytes_atomic
     from turbinefit.io.images import check_image, encode_png, read_image
-    from turbinefit.io.regions import RegionLabel, read_region_labels
+    from turbinefit.io.regions import RegionLabel, decode_rle, read_region_labels
     from turbinefit.plots.sheet import contact_sheet, draw_outline
 
     if not (math.isfinite(grow) and 0 <= grow <= 1):
@@ -212,6 +213,8 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
         reg = box_region([grow_box(b, grow, *size) for _, b in lab.boxes], size, map_wh)
         if lab.polygons:
             reg |= polygon_region([xy for _, xy in lab.polygons], size, map_wh)
+        for _, rle in lab.rles:
+            reg |= mask_region(decode_rle(rle), map_wh)
         return reg
 
     def run(d: HeatmapDetector, job: tuple[RegionLabel, tuple[int, int]]
