@@ -199,3 +199,26 @@ def test_the_next_run_removes_the_temporary_folder_of_a_killed_one(
     assert temporaries(out) == []
     assert sorted(entries(out)) == ["config.yaml", "keyframes.txt", "summary.json",
                                     "turbine.glb", "turbine.yaml"]
+
+
+def test_a_signal_swallowed_in_a_finaliser_is_raised_after_it() -> None:
+    # Python drops an exception raised in __del__ or a weakref callback (the import system
+    # runs such callbacks): the signal must still stop the command, once that code returns
+    from turbinefit.cli.signals import Interrupted, RaisingOnSignals
+
+    class Finalised:
+        def __del__(self) -> None:
+            os.kill(os.getpid(), signal.SIGTERM)
+            sum(range(1000))  # the handler runs here, inside __del__
+
+    reached_end = False
+    hook = sys.unraisablehook
+    with pytest.raises(Interrupted) as caught, RaisingOnSignals():
+        obj = Finalised()
+        del obj
+        end = time.monotonic() + 5.0
+        while time.monotonic() < end:
+            pass
+        reached_end = True
+    assert caught.value.signum == signal.SIGTERM and not reached_end
+    assert sys.unraisablehook is hook  # the block's hook is gone with it

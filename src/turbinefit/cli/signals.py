@@ -26,7 +26,9 @@ import sys
 TYPE_CHECKING = False
 if TYPE_CHECKING:
     import signal as _sig
+    from collections.abc import Callable
     from types import FrameType, TracebackType
+    from typing import Any
 else:
     try:
         import _signal as _sig
@@ -101,20 +103,45 @@ def exit_quietly_on_signals() -> None:
             return
 
 
+def _send_later(signum: int, delay_s: float = 0.001) -> None:
+    import time
+
+    time.sleep(delay_s)
+    os.kill(os.getpid(), signum)
+
+
 class RaisingOnSignals:
     """While the ``with`` block runs, the first handled signal raises :class:`Interrupted`
     in the main thread and later ones are ignored; the previous handlers are restored after
-    it. Outside the main thread (a caller's worker thread) this does nothing."""
+    it. Outside the main thread (a caller's worker thread) this does nothing.
+
+    Python swallows an exception raised where nobody can catch it, in a weak reference's
+    callback or a ``__del__`` (the import system runs such callbacks), and hands it to
+    ``sys.unraisablehook``: the block's hook sends the signal again, so that it is raised
+    once that code has returned instead of being lost."""
 
     def __init__(self) -> None:
         self.caught: int | None = None
         self.saved: dict[int, object] = {}
+        self.saved_hook: Callable[[Any], object] | None = None
 
     def _raise(self, signum: int, frame: FrameType | None) -> None:
         if self.caught is not None:  # cleaning up after the first one: let it finish
             return
         self.caught = signum
         raise Interrupted(signum)
+
+    def _unraisable(self, unraisable: Any) -> None:
+        exc = unraisable.exc_value
+        if isinstance(exc, Interrupted) and self.caught == exc.signum:
+            # swallowed where it was raised: send it again from another thread, so that it
+            # is raised after this hook and the code that swallowed it have returned
+            import threading
+
+            self.caught = None
+            threading.Thread(target=_send_later, args=(exc.signum,), daemon=True).start()
+            return
+        (self.saved_hook or sys.__unraisablehook__)(unraisable)
 
     def __enter__(self) -> RaisingOnSignals:
         for sig in SIGNALS:
@@ -126,9 +153,14 @@ class RaisingOnSignals:
             except ValueError:  # not the main thread of the main interpreter
                 break
             self.saved[sig] = previous
+        if self.saved:
+            self.saved_hook = sys.unraisablehook
+            sys.unraisablehook = self._unraisable
         return self
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         for sig, previous in self.saved.items():
             _sig.signal(sig, previous)  # type: ignore[arg-type]
+        if self.saved_hook is not None:
+            sys.unraisablehook = self.saved_hook

@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from matplotlib.path import Path as Outline  # imported here, not in the detector threads
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -87,8 +88,6 @@ def polygon_region(polygons: list[tuple[float, ...]], photo_size: tuple[int, int
     ((x1, y1, x2, y2, ...) in photo px, pixel edges) of a photo of ``photo_size`` (W, H),
     as :func:`mask_region` treats a mask; coverage is counted on ``samples`` x ``samples``
     points a map pixel (matplotlib's point-in-polygon test)."""
-    from matplotlib.path import Path as Outline
-
     (pw, ph), (w, h) = photo_size, map_size
     u = (np.arange(w * samples) + 0.5) * (pw / (w * samples))
     v = (np.arange(h * samples) + 0.5) * (ph / (h * samples))

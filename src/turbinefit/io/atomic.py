@@ -177,11 +177,12 @@ def reserve_output(path: StrPath) -> None:
     if p in _RESERVED or not p.parent.is_dir():
         return
     lock = _sibling(p, "lock")
+    _RESERVED[p] = lock  # before the file exists: a signal once it does still removes it
     try:
         os.close(os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     except OSError:
+        del _RESERVED[p]
         return  # a folder we may not write to: check_output_dir says so
-    _RESERVED[p] = lock
     pid = _live_owner(p.parent, p.name)
     if pid is not None:
         release_output(p)
