@@ -3,6 +3,7 @@ each a mutation of the base flight and a command line."""
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -333,6 +334,24 @@ def _cases() -> list[Case]:
     add("evaluate-labels-not-json", cmd("evaluate", "--labels", "{w}/flight/camera.yaml",
                                         "--images-dir", "{w}/flight/images", "--quiet"), None,
         r"camera\.yaml", r"JSON")
+    def outline(seg: object) -> Mutation:
+        """A COCO file o.json outlining the flight's 64x48 photo 2.000000.png by ``seg``."""
+        return write("o.json", json.dumps({
+            "images": [{"id": 1, "file_name": "2.000000.png", "width": 64, "height": 48}],
+            "annotations": [{"id": 1, "image_id": 1, "category_id": 1, "bbox": [0, 0, 8, 8],
+                             "segmentation": seg}],
+            "categories": [{"id": 1, "name": "turbine"}]}))
+
+    boxes = cmd("evaluate", "--boxes", "{w}/flight/o.json", "--images-dir", "{w}/flight/images",
+                "--quiet")
+    add("evaluate-rle-size", boxes, outline({"size": [48, 48], "counts": [2304]}), r"o\.json",
+        r"annotations\[0\]\.segmentation", r"RLE size")
+    add("evaluate-rle-counts", boxes, outline({"size": [48, 64], "counts": [3000, 1]}),
+        r"o\.json", r"add up to 3001")
+    add("evaluate-polygon-outside", boxes, outline([[0, 0, 70, 0, 0, 40]]), r"o\.json",
+        r"reaches outside its 64x48 image")
+    add("evaluate-polygon-two-points", boxes, outline([[0, 0, 10, 10]]), r"o\.json",
+        r"three or more points")
     add("report-rows-fifo", cmd("report", "{w}/flight/exp"),
         both(write("exp/sweep.yaml", "study: unary\n"), fifo("exp/rows.csv")), r"exp",
         hang=True)
