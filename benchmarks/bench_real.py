@@ -119,14 +119,14 @@ def read_parts(path: Path) -> dict[str, list[list[float]]]:
 
 
 def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
-               polygons: list[list[float]]) -> float:
-    """Share of ``maps``' line mass inside ``row``'s box (grown as ``evaluate`` grows it)
-    or any of ``polygons`` (as ``evaluate`` reads outlines, grown by :data:`PART_GROW_PX`
-    map px)."""
+               polygons: list[list[float]], grow: float) -> float:
+    """Share of ``maps``' line mass inside ``row``'s box (grown by ``grow``, as the
+    ``evaluate`` run grew it) or any of ``polygons`` (as ``evaluate`` reads outlines,
+    grown by :data:`PART_GROW_PX` map px)."""
     from scipy import ndimage
 
     (pw, ph), (h, w) = photo_size, maps.shape[1:]
-    box = grow_box(tuple(float(v) for v in row[4:8]), 0.05, pw, ph)  # type: ignore[arg-type]
+    box = grow_box(tuple(float(v) for v in row[4:8]), grow, pw, ph)  # type: ignore[arg-type]
     region = box_region([box], photo_size, (w, h))
     if polygons:
         parts = polygon_region([tuple(xy) for xy in polygons], photo_size, (w, h))
@@ -230,7 +230,7 @@ def main() -> None:
         for r, ((ph, pw), hm) in zip(mine, found, strict=True):
             total = float(hm[TOWER_LINE:].sum())
             tower_share[r[0]] = float(hm[TOWER_LINE].sum()) / total if total > 0 else 0.0
-            turbine[r[0]] = on_turbine(hm, r, (pw, ph), parts.get(r[0], []))
+            turbine[r[0]] = on_turbine(hm, r, (pw, ph), parts.get(r[0], []), rep.grow)
     result["bottom_rows"] = artefact
     if args.views.is_file():
         result["views"] = per_view(args.views, rows, inside, tower_share, turbine)

@@ -35,6 +35,7 @@ photo that is missing, sizes that disagree.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import math
 import warnings
@@ -199,15 +200,13 @@ def _rle(seg: dict[str, Any], size: tuple[int, int], error: Callable[[str], Inpu
             raise error(f"RLE counts add up to {sum(counts)}, not the image's {h * w} pixels")
     elif not (isinstance(counts, str) and counts.isascii() and counts):
         raise error("RLE counts must be a list of whole numbers or COCO's compressed string")
-    try:
-        mask = decode_rle({"size": [h, w], "counts": counts})
+    try:  # decoded once here, so that a bad one fails before any photo is run
+        decode_rle({"size": [h, w], "counts": counts})
     except ImportError:
         raise error("is run-length encoded (RLE), which needs pycocotools: "
                     "pip install 'turbinefit[coco]'") from None
     except Exception as e:  # pycocotools' own complaint about a malformed string
         raise error(f"cannot decode the RLE: {e}") from None
-    if mask.shape != (h, w):
-        raise error(f"RLE decodes to {mask.shape[1]}x{mask.shape[0]}, not {w}x{h}")
     return {"size": [h, w], "counts": counts}
 
 
@@ -277,11 +276,7 @@ def read_coco_boxes(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
         seg = a.get("segmentation")
         if seg not in (None, []):
             size = images[a["image_id"]][1]
-            field = f"{f}.segmentation"
-
-            def error(message: str, field: str = field) -> InputError:
-                return r.error(message, field)
-
+            error = functools.partial(r.error, field=f"{f}.segmentation")
             cls = cats[a["category_id"]]
             if isinstance(seg, dict):
                 rles.setdefault(a["image_id"], []).append((cls, _rle(seg, size, error)))

@@ -158,9 +158,8 @@ def evaluate_regions(images_dir: str | os.PathLike[str], *,
                      detect_options: DetectOptions | None = None) -> RegionReport:
     """Figures of the ONNX ``model`` (default: shipped) on photos labelled with boxes (a
     CSV, or a COCO file whose ``bbox`` or ``segmentation`` (polygons or RLE) are read,
-    ``boxes``)
-    or masks (a folder of label PNGs, ``masks``; :mod:`turbinefit.io.regions`), per class
-    and overall (:mod:`turbinefit.eval.regions`: line mass inside the box grown by
+    ``boxes``) or masks (a folder of label PNGs, ``masks``; :mod:`turbinefit.io.regions`),
+    per class and overall (:mod:`turbinefit.eval.regions`: line mass inside the box grown by
     ``grow`` of its size on each side, or the outline or mask; the skeleton of outlines
     and masks covered; photos where anything is found; point peaks outside),
     and, with ``out``, a JSON report (also each photo's figures) and, with ``sheet``, a
