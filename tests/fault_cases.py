@@ -214,10 +214,10 @@ def _cases() -> list[Case]:
                                             "tower_height: 1e300"), TURB, r"beyond")
 
     # -- heat-maps
-    for value, pat in ((1.5, r"holds 1\.5, outside \[0, 1\]"), (-1.0, r"holds -1\.0"),
+    for bad, pat in ((1.5, r"holds 1\.5, outside \[0, 1\]"), (-1.0, r"holds -1\.0"),
                        (1e30, r"outside"), (np.inf, r"holds inf"), (-np.inf, r"holds -inf"),
                        (np.nan, r"NaN"), (1.002, r"1\.00")):
-        add(f"heatmap-value-{value}", fit(), npy(2, set_value(5, value)), HM,
+        add(f"heatmap-value-{bad}", fit(), npy(2, set_value(5, bad)), HM,
             r"channel 5 \(line_nacelle\)", pat)
     add("heatmaps-all-minus-1", fit(), npy(None, lambda a: np.full_like(a, -1.0)),
         r"heatmaps/0\.000000\.npy", r"holds -1\.0")

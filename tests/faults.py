@@ -43,7 +43,8 @@ HANG_TIMEOUT = 60.0
 #: keyframes.txt as simulate writes it: two comment lines, then keyframe k on line k + 3.
 FIRST_POSE_LINE = 3
 
-Mutation = Callable[[Path], None]
+#: Changes a copy of a flight folder in place; what it returns is ignored.
+Mutation = Callable[[Path], object]
 
 
 @dataclass(frozen=True)
