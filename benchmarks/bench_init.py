@@ -11,12 +11,16 @@ Per default 200-keyframe flight (``--flights`` seeds, GPS/IMU and VIO odometry):
 * ``track`` from nothing against ``track`` from turbine.yaml on the first ``--track``
   GPS flights (target: final position error within 10 %);
 * ``--photos N``: the photo flights of bench_defaults.py (seeds 0 to N-1, 200 keyframes,
-  rendered once into ``benchmarks/data/``), init + fit from the heat-maps the CNN detects
-  (target >= 90 %), and the fit from their turbine.yaml.
+  320 x 240 photos, rendered once into ``benchmarks/data/``), init + fit from the heat-maps
+  the CNN detects (target >= 90 %), the fit from their turbine.yaml, and the fit of the
+  simulator's ideal heat-maps from it (what the flight allows without the CNN's errors);
+  ``--photo-size 1280``: bench_resolution.py's flights with 1280 x 960 photos instead
+  (seeds 20 to 19+N), detected coarse to fine as ``fit`` does.
 
 Usage::
 
-    python benchmarks/bench_init.py [--flights 10] [--track 3] [--photos 0] [--out FILE]
+    python benchmarks/bench_init.py [--flights 10] [--track 3] [--photos 0]
+        [--photo-size 320|1280] [--out FILE]
 
 Prints a table and writes ``benchmarks/results/bench_init.json`` (or ``--out``).
 """
@@ -106,25 +110,37 @@ def _link_or_copy(src: str, dst: str) -> None:
         shutil.copy2(src, dst)
 
 
-def photo_flight(seed: int, root: Path) -> dict[str, Any]:
-    """init + fit of the photo flight of ``seed``: bench_defaults.py's (simulated once into
-    ``benchmarks/data/``), copied without its heat-maps (photos hard-linked)."""
-    from bench_defaults import simulate
-
+def photo_flight(seed: int, root: Path, size: int = 320) -> dict[str, Any]:
+    """init + fit of the photo flight of ``seed``, copied without its heat-maps (photos
+    hard-linked): bench_defaults.py's with 320 x 240 photos, or bench_resolution.py's with
+    1280 x 960 photos (each simulated once into ``benchmarks/data/``). Also the fit of its
+    ideal heat-maps from its turbine.yaml."""
     from turbinefit.jobs.fit import fit_folder
 
+    if size == 1280:
+        from bench_resolution import photo_flight as simulate_1280
+        source = simulate_1280(seed, 200)
+    else:
+        from bench_defaults import simulate
+        source = simulate(seed, 200)
+    ideal = fit_folder(source, root / f"p{seed}_ideal", plots=False).summary.after
     folder = root / f"p{seed}"
-    shutil.copytree(simulate(seed, 200), folder, copy_function=_link_or_copy,
+    shutil.copytree(source, folder, copy_function=_link_or_copy,
                     ignore=shutil.ignore_patterns("heatmaps"))
     y = fit_folder(folder, root / f"p{seed}_yaml", plots=False).summary.after
-    assert y is not None
+    assert y is not None and ideal is not None
     (folder / "turbine.yaml").unlink()
     rep = fit_folder(folder, root / f"p{seed}_fit", plots=False)
     a = rep.summary.after
     init = rep.summary.init
     assert a is not None and init is not None and init.errors is not None
     e = init.errors
-    return {"seed": seed, "init_errors": e, "yaml_position_m": y.position_error_m,
+    return {"seed": seed, "photo_width": size, "init_errors": e,
+            "ideal_position_m": ideal.position_error_m,
+            "ideal_model_m": ideal.model_point_error_m,
+            "ideal_ok": (ideal.position_error_m < GOOD_M
+                         and ideal.model_point_error_m < GOOD_M),
+            "yaml_position_m": y.position_error_m,
             "yaml_model_m": y.model_point_error_m,
             "yaml_ok": y.position_error_m < GOOD_M and y.model_point_error_m < GOOD_M,
             "position_m": a.position_error_m,
@@ -137,6 +153,9 @@ def main() -> None:
     ap.add_argument("--flights", type=int, default=10)
     ap.add_argument("--track", type=int, default=3)
     ap.add_argument("--photos", type=int, default=0)
+    ap.add_argument("--photo-size", type=int, choices=(320, 1280), default=320,
+                    help="photo width of the --photos flights: 320 (seeds 0, 1, ...) or "
+                         "1280 (seeds 20, 21, ...)")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_init.json")
     args = ap.parse_args()
     rows = [one_flight(s, odo) for odo in ("gps", "vio") for s in range(args.flights)]
@@ -165,7 +184,9 @@ def main() -> None:
               f"{np.mean(pos):.3f} m, model points mean {np.mean(mod):.3f} m")
     with tempfile.TemporaryDirectory() as tmp:
         tracks = [track_pair(s, Path(tmp)) for s in range(args.track)]
-        photos = [photo_flight(s, Path(tmp)) for s in range(args.photos)]
+        first = 20 if args.photo_size == 1280 else 0
+        photos = [photo_flight(first + i, Path(tmp), args.photo_size)
+                  for i in range(args.photos)]
     out["track"] = tracks
     out["photos"] = photos
     if tracks:
@@ -175,6 +196,7 @@ def main() -> None:
     if photos:
         print(f"photos: init + fit success {100 * np.mean([p['ok'] for p in photos]):.1f} % of "
               f"{len(photos)}, from turbine.yaml {100 * np.mean([p['yaml_ok'] for p in photos]):.1f}"
+              f" %, ideal heat-maps {100 * np.mean([p['ideal_ok'] for p in photos]):.1f}"
               " %; position init + fit / from turbine.yaml: " + ", ".join(
                   f"{p['position_m']:.3f} / {p['yaml_position_m']:.3f}" for p in photos))
     write_json(args.out, out)
