@@ -18,7 +18,9 @@ grown by 5 % of their size a side) and prints, per class: the share of the line
 heat-maps' mass inside the grown box, the share of photos where a turbine is found, and
 the point peaks outside the box; then the bottom-rows artefact: the mean of the line
 channels' maximum over the maps' bottom rows (40 rows of the 1024-px photo) against that
-over the whole map. Results: ``benchmarks/results/bench_real.json``; the contact sheet of
+over the whole map. Results: ``benchmarks/results/bench_real.json`` for the shipped net
+(``bench_real_<stem>.json`` with ``--model <stem>.onnx``, ``bench_real_x<S>.json`` with
+``--input-scale S``, or ``--out``); the contact sheet of
 the worst photos goes to ``benchmarks/data/real_worst.png`` (it shows the photos: not
 committed).
 
@@ -106,6 +108,13 @@ def renders_of_each_shape(n: int, model: Path | None) -> None:
               f"{np.mean(whole):.3f}")
 
 
+def default_name(model: Path | None, input_scale: float) -> str:
+    """The results file of a run of ``model`` (None: the shipped net) at ``input_scale``:
+    the shipped net's figures are never overwritten by another net's."""
+    name = "bench_real" if model is None else f"bench_real_{model.stem}"
+    return name + (f"_x{input_scale:g}" if input_scale != 1.0 else "") + ".json"
+
+
 def read_parts(path: Path) -> dict[str, list[list[float]]]:
     """``filename`` -> polygons (x y x y ... [photo px]) of ``path`` (``--parts``)."""
     parts: dict[str, list[list[float]]] = {}
@@ -168,7 +177,11 @@ def main() -> None:
     ap.add_argument("--model", type=Path, default=None)
     ap.add_argument("--input-scale", type=float, default=1.0,
                     help="run the net at this multiple of its input size (test-time zoom off "
-                         "unless 1; results then go to bench_real_x<S>.json)")
+                         "unless 1)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="results JSON (default: benchmarks/results/bench_real.json for the "
+                         "shipped net at its own size, bench_real_<stem>.json with --model, "
+                         "bench_real_x<S>.json with --input-scale S)")
     ap.add_argument("--renders", type=int, default=0,
                     help="also N held-out renders of each shape (square, 3:2, 16:9, 3:4)")
     ap.add_argument("--views", type=Path, default=VIEWS,
@@ -234,7 +247,7 @@ def main() -> None:
     result["bottom_rows"] = artefact
     if args.views.is_file():
         result["views"] = per_view(args.views, rows, inside, tower_share, turbine)
-    out = RESULTS / (f"bench_real_x{args.input_scale:g}.json" if scaled else "bench_real.json")
+    out = args.out or RESULTS / default_name(args.model, args.input_scale)
     write_json(out, result)
     print(f"wrote {out}; worst photos: {DATA / 'real_worst.png'}")
 
