@@ -184,7 +184,10 @@ def main() -> None:
               f"{np.mean(pos):.3f} m, model points mean {np.mean(mod):.3f} m")
     with tempfile.TemporaryDirectory() as tmp:
         tracks = [track_pair(s, Path(tmp)) for s in range(args.track)]
-        first = 20 if args.photo_size == 1280 else 0
+        if args.photo_size == 1280:
+            from bench_resolution import PHOTO_SEED as first
+        else:
+            first = 0
         photos = [photo_flight(first + i, Path(tmp), args.photo_size)
                   for i in range(args.photos)]
     out["track"] = tracks
