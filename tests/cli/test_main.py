@@ -119,3 +119,74 @@ def test_a_full_disk_anywhere_is_one_line_naming_the_final_path(
     rc, out, err = run(capsys, "report", "anywhere")
     assert_one_line_error(rc, out, err, r"^turbinefit: error: no space left on device writing "
                           r"/data/out/scene\.png$")
+
+
+def _all_parsers() -> dict[str, argparse.ArgumentParser]:
+    """Every command's parser, sub-commands included ('import dji'), by name."""
+    found: dict[str, argparse.ArgumentParser] = {}
+
+    def walk(name: str, parser: argparse.ArgumentParser) -> None:
+        found[name] = parser
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub, p in action.choices.items():
+                    walk(f"{name} {sub}".strip(), p)
+
+    walk("", build_parser())
+    return found
+
+
+#: Every option that takes coordinates or a list of numbers, with negative values.
+NEGATIVE_VALUES = [
+    (["import", "dji", "p.jpg", "--out", "o", "--origin", "-5.2,-35.6,-12"], "origin",
+     (-5.2, -35.6, -12.0)),
+    (["import", "dji", "p.jpg", "--out", "o", "--turbine", "-33.9,-70.5"], "turbine",
+     (-33.9, -70.5)),
+    (["init", "f", "--near", "-40,-3.5"], "near", (-40.0, -3.5)),
+    (["init", "f", "--near-wgs84", "-35.6,-149.1"], "near_wgs84", (-35.6, -149.1)),
+    (["import", "rosbag", "b.bag", "--out", "o", "--image-topic", "/i", "--odometry-topic",
+      "/o", "--body-T-cam", "-0.1,-0.2,-0.3,0,0,0,1"], "body_T_cam",
+     (-0.1, -0.2, -0.3, 0.0, 0.0, 0.0, 1.0)),
+    (["coverage", "fit", "--out", "o", "--blade-pitch", "-5e0"], "blade_pitch", -5.0),
+]
+
+
+@pytest.mark.parametrize(("argv", "dest", "expected"), NEGATIVE_VALUES)
+def test_negative_numbers_are_values_of_every_option(argv: list[str], dest: str,
+                                                     expected: object) -> None:
+    args = build_parser({argv[0]}).parse_args(argv)
+    value = getattr(args, dest)
+    assert (tuple(value) if isinstance(value, tuple) else value) == pytest.approx(expected)
+
+
+def test_every_option_of_several_numbers_is_tested_with_negative_values() -> None:
+    # an option whose value is a comma-separated list of numbers (its metavar has a comma)
+    # must be in NEGATIVE_VALUES above; those of train take no negative values
+    tested = {opt for argv, _, _ in NEGATIVE_VALUES for opt in argv if opt.startswith("--")}
+    lists = {opt for parser in _all_parsers().values() for action in parser._actions
+             if action.metavar and "," in str(action.metavar)
+             for opt in action.option_strings[:1]}
+    assert lists, "no option of several numbers found"
+    assert lists - tested == {"--channel-weights", "--widths"}
+
+
+@pytest.mark.parametrize(("argv", "pattern"), [
+    (["init", "f", "--near", "nan,0"], r"--near: X must be a number, got nan"),
+    (["init", "f", "--near-wgs84", "nan,nan"], r"latitude must be a number, got nan"),
+    (["init", "f", "--near-wgs84", "91,0"], r"latitude 91.0 deg is out of range"),
+    (["import", "dji", "p.jpg", "--out", "o", "--origin", "-5.2,-35.6"],
+     r"expected LAT,LON,ALT"),
+    (["import", "dji", "p.jpg", "--out", "o", "--origin", "0,0,1e9"],
+     r"altitude 1000000000.0 m is out of range"),
+    (["coverage", "fit", "--out", "o", "--gsd", "inf"], r"--gsd"),
+])
+def test_numbers_out_of_range_are_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str],
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert re.search(pattern, err.splitlines()[-1]), err
+    assert entries(tmp_path) == []

@@ -23,9 +23,25 @@ from support import entries
 TIMEOUT_S = 60
 
 
+def default_dispositions() -> None:
+    """In the child, before it runs Python: SIGINT, SIGTERM and SIGHUP at their default
+    disposition, whatever the test run inherited (a background job of a non-interactive
+    shell ignores SIGINT, ``nohup`` ignores SIGHUP; an ignored signal stays ignored in the
+    command, which is tested on its own below)."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 def start(*argv: str) -> subprocess.Popen[str]:
     return subprocess.Popen([sys.executable, "-m", "turbinefit.cli", *argv],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=default_dispositions)
+
+
+def run_code(code: str) -> subprocess.CompletedProcess[str]:
+    """Python ``code`` in a child with the default dispositions."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=TIMEOUT_S, preexec_fn=default_dispositions)
 
 
 def wait_for(proc: subprocess.Popen[str], ready: Callable[[], bool], what: str) -> None:
@@ -106,8 +122,7 @@ def test_ctrl_c_at_start_up_prints_one_line(tmp_path: Path) -> None:
     # rest: a signal right after that import is one line, not a traceback
     code = ("import os, signal, sys, time\nsys.argv = ['turbinefit']\nimport turbinefit.cli\n"
             "os.kill(os.getpid(), signal.SIGINT)\ntime.sleep(30)\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=TIMEOUT_S)
+    proc = run_code(code)
     assert (proc.returncode, proc.stderr) == (130, "turbinefit: interrupted (SIGINT)\n")
 
 
@@ -128,8 +143,7 @@ def test_an_ignored_signal_stays_ignored() -> None:
             "def run(args):\n    os.kill(os.getpid(), signal.SIGHUP)\n"
             "    os.kill(os.getpid(), signal.SIGTERM)\n    return 0\n"
             "turbinefit.cli.report.run = run\nsys.exit(turbinefit.cli.main(['report', '.']))\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=TIMEOUT_S)
+    proc = run_code(code)
     assert (proc.returncode, proc.stderr) == (143, "turbinefit: interrupted (SIGTERM)\n")
 
 
@@ -187,14 +201,16 @@ def test_the_next_run_removes_the_temporary_folder_of_a_killed_one(
     live.mkdir()
     argv = [sys.executable, "-m", "turbinefit.cli", "fit", str(sim_flight_dir), "--out",
             str(out), "--quiet", "--no-plots", "--max-iterations", "1"]
-    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S)
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S,
+                           preexec_fn=default_dispositions)
     assert rerun.returncode == 2
     assert rerun.stderr == (f"turbinefit: error: {out}: another turbinefit run (process "
                             f"{os.getpid()}) is writing this output folder now; wait for it "
                             "to end or choose another output\n")
     assert sorted(temporaries(out)) == sorted([*left, live])
     live.rmdir()  # that run ended
-    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S)
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S,
+                           preexec_fn=default_dispositions)
     assert rerun.returncode == 0, rerun.stderr
     assert temporaries(out) == []
     assert sorted(entries(out)) == ["config.yaml", "keyframes.txt", "summary.json",
@@ -205,6 +221,15 @@ def test_a_signal_swallowed_in_a_finaliser_is_raised_after_it() -> None:
     # Python drops an exception raised in __del__ or a weakref callback (the import system
     # runs such callbacks): the signal must still stop the command, once that code returns
     from turbinefit.cli.signals import Interrupted, RaisingOnSignals
+
+    inherited = signal.signal(signal.SIGTERM, signal.SIG_DFL)  # whatever the run inherited
+    try:
+        _swallowed_in_a_finaliser(Interrupted, RaisingOnSignals)
+    finally:
+        signal.signal(signal.SIGTERM, inherited)
+
+
+def _swallowed_in_a_finaliser(Interrupted: type, RaisingOnSignals: type) -> None:
 
     class Finalised:
         def __del__(self) -> None:

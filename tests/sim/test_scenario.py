@@ -77,16 +77,21 @@ def test_second_turbine_adds_responses_far_away():
 
 def test_default_gps_flights_are_unchanged():
     """Values of a flight simulated before the odometry stream was added (same seed): the
-    default (gps) flight is bit for bit what it was."""
+    default (gps) flight draws the same random numbers as it did.
+
+    The tolerances protect that, not the last bits: a changed random stream moves a pose by
+    metres and the heat-maps' sum by whole blobs (tens to thousands), while the same draws
+    give values that differ across CPUs and libm builds by rounding alone (the maps' sum by
+    2e-8 relative between two x86-64 machines: their exp and float16 rounding differ)."""
     f = simulated_flight(6, seed=3)
     np.testing.assert_allclose(f.world_T_cam.wxyz_xyz[-1], [
         0.6113651535163609, -0.6485274071535837, -0.3439079285107146, 0.2955878683979363,
-        76.46589246834193, -56.25982333670883, 89.14863760946272], rtol=1e-13)
+        76.46589246834193, -56.25982333670883, 89.14863760946272], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(f.turbine.to_vector(), [
         -1.9370586108057386, 1.4307868680994773, 86.03198860672073, 5.653407843687704,
-        4.489391546540411, 1.3481186345432985, 63.542734627627425], rtol=1e-13)
+        4.489391546540411, 1.3481186345432985, 63.542734627627425], rtol=1e-9)
     maps = np.stack([f.heatmaps[k] for k in range(6)]).astype(np.float64)
-    assert float(maps.sum()) == pytest.approx(9418.60811480457, rel=1e-12)
+    assert float(maps.sum()) == pytest.approx(9418.60811480457, rel=1e-5)
     assert f.odometry is None
 
 

@@ -76,9 +76,9 @@ def _module(name: str) -> ModuleType:
 def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentParser:
     """The argument parser; ``commands``: those built with all their options (None =
     all), the others as stubs that only name themselves."""
-    from turbinefit.cli.common import version
+    from turbinefit.cli.common import Parser, version
 
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="turbinefit",
         description="Simultaneous drone localisation and wind-turbine model fitting from CNN "
         "heat-maps (Moolan-Feroze et al., IROS 2019).",

@@ -14,17 +14,70 @@ import dataclasses
 import inspect
 import itertools
 import math
+import re
 import textwrap
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from turbinefit.detect import DetectOptions
+    from turbinefit.io.quantities import Quantity
     from turbinefit.solver.config import FitConfig
 
 
+# ---- the parser ---------------------------------------------------------------------------
+
+#: An argument that starts with a minus and then a digit, a point and a digit, ``inf`` or
+#: ``nan`` is a value (``--origin -5.2,-35.6,12``, ``--near -40,-3``), never an option: no
+#: option of turbinefit looks like that. argparse's own rule takes only a plain negative
+#: number (``-5.2``) as a value, so a list of numbers starting with a minus was refused
+#: as an unknown option ("expected one argument").
+NEGATIVE_VALUE = re.compile(r"^-(\.?\d|inf|nan)", re.IGNORECASE)
+
+
+class Parser(argparse.ArgumentParser):
+    """The command line's argument parser (and its subcommands'): argparse's, with
+    :data:`NEGATIVE_VALUE` as its rule for values that start with a minus."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_VALUE
+
+
 # ---- argument types ----------------------------------------------------------------------
+
+def option(quantity: Quantity) -> Callable[[str], float]:
+    """The argparse type of an option holding one ``quantity``
+    (:mod:`turbinefit.io.quantities`): its range checked as in files and photo metadata."""
+    def parse(text: str) -> float:
+        from turbinefit.errors import InputError
+
+        try:
+            return quantity.parse(text)
+        except InputError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    parse.__name__ = quantity.what
+    return parse
+
+
+def option_tuple(*quantities: Quantity, what: str) -> Callable[[str], tuple[float, ...]]:
+    """The argparse type of an option holding comma-separated numbers, one per quantity
+    (``what`` names the form in messages: ``"LAT,LON in degrees"``)."""
+    def parse(text: str) -> tuple[float, ...]:
+        from turbinefit.errors import InputError
+
+        parts = text.split(",")
+        if len(parts) != len(quantities):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        try:
+            return tuple(q.parse(x) for q, x in zip(quantities, parts, strict=True))
+        except InputError as e:
+            raise argparse.ArgumentTypeError(f"{e} (in {text!r})") from None
+    parse.__name__ = what
+    return parse
+
 
 def whole_number(text: str, minimum: int, why: str) -> int:
     v = _integer(text)
@@ -46,10 +99,14 @@ def seed(text: str) -> int:
 
 
 def number(text: str) -> float:
+    """A finite number (any option's: none takes nan or inf)."""
     try:
-        return float(text)
+        v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
 
 
 def positive_number(text: str) -> float:

@@ -47,26 +47,19 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     return p
 
 
-def _numbers(text: str, n: int, what: str) -> tuple[float, ...]:
-    from turbinefit.cli.common import number
+def _latlon(text: str) -> tuple[float, ...]:
+    from turbinefit.cli.common import option_tuple
+    from turbinefit.io.quantities import LATITUDE, LONGITUDE
 
-    parts = text.split(",")
-    try:
-        if len(parts) != n:
-            raise ValueError
-        return tuple(number(x.strip()) for x in parts)
-    except (ValueError, argparse.ArgumentTypeError):
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    return option_tuple(LATITUDE, LONGITUDE, what="LAT,LON in degrees")(text)
 
 
-def _latlon(text: str) -> tuple[float, float]:
-    lat, lon = _numbers(text, 2, "LAT,LON in degrees")
-    return lat, lon
+def _latlonalt(text: str) -> tuple[float, ...]:
+    from turbinefit.cli.common import option_tuple
+    from turbinefit.io.quantities import ALTITUDE, LATITUDE, LONGITUDE
 
-
-def _latlonalt(text: str) -> tuple[float, float, float]:
-    lat, lon, alt = _numbers(text, 3, "LAT,LON,ALT (degrees, degrees, metres)")
-    return lat, lon, alt
+    return option_tuple(LATITUDE, LONGITUDE, ALTITUDE,
+                        what="LAT,LON,ALT (degrees, degrees, metres)")(text)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -21,18 +21,19 @@ common turbines, --list-types) or --hub-height/--rotor-diameter for the sizes,
 --near for the position when other turbines are in view. Details: docs/init.md."""
 
 
-def _pair(what: str) -> Any:
-    def parse(text: str) -> tuple[float, float]:
-        from turbinefit.cli.common import number
+def _near(text: str) -> tuple[float, ...]:
+    from turbinefit.cli.common import option_tuple
+    from turbinefit.io.quantities import COORDINATE, named
 
-        parts = text.split(",")
-        try:
-            if len(parts) != 2:
-                raise ValueError
-            return number(parts[0].strip()), number(parts[1].strip())
-        except (ValueError, argparse.ArgumentTypeError):
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-    return parse
+    return option_tuple(named(COORDINATE, "X"), named(COORDINATE, "Y"),
+                        what="X,Y in metres")(text)
+
+
+def _near_wgs84(text: str) -> tuple[float, ...]:
+    from turbinefit.cli.common import option_tuple
+    from turbinefit.io.quantities import LATITUDE, LONGITUDE
+
+    return option_tuple(LATITUDE, LONGITUDE, what="LAT,LON in degrees")(text)
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
@@ -46,9 +47,9 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("flight_dir", metavar="FLIGHT_DIR", type=Path, nargs="?",
                    help="flight folder (its turbine.yaml, if any, is not read)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--near", type=_pair("X,Y in metres"), default=None, metavar="X,Y",
+    where.add_argument("--near", type=_near, default=None, metavar="X,Y",
                        help="the turbine stands within ~30 m of here (flight frame, metres)")
-    where.add_argument("--near-wgs84", type=_pair("LAT,LON in degrees"), default=None,
+    where.add_argument("--near-wgs84", type=_near_wgs84, default=None,
                        metavar="LAT,LON", help="the same in WGS84 degrees (needs georef.yaml)")
     p.add_argument("--type", dest="type_name", default=None, metavar="NAME",
                    help="turbine type of the catalogue (--list-types): priors for the sizes")

@@ -24,6 +24,7 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.flight_folder import FLIGHT_ENTRIES, TURBINE_FILE, read_flight_folder
+from turbinefit.io.quantities import COORDINATE, LATITUDE, LONGITUDE, Quantity, named
 from turbinefit.io.turbine_yaml import format_turbine_yaml
 from turbinefit.jobs.sources import open_heatmaps
 from turbinefit.solver.init import InitOptions, NotDetermined, TurbinePrior, initial_turbine
@@ -31,6 +32,12 @@ from turbinefit.turbine.model import TurbineParams, param_errors
 
 if TYPE_CHECKING:
     from turbinefit.detect import DetectOptions
+
+#: ``--hub-height`` [m]: from the smallest turbines inspected by drone to beyond the
+#: tallest built (about 170 m).
+HUB_HEIGHT = Quantity("hub height", "m", 10.0, 250.0)
+#: ``--rotor-diameter`` [m]: the same span of turbines (the largest: about 260 m).
+ROTOR_DIAMETER = Quantity("rotor diameter", "m", 10.0, 300.0)
 
 #: The comment line of the ``turbine.yaml`` that ``init`` writes.
 INIT_TURBINE_COMMENT = "turbinefit init: initial turbine estimated from the images (metres, radians)"
@@ -112,25 +119,24 @@ def turbine_prior(flight_dir: str | os.PathLike[str], *,
 
         prior = turbine_type(type_name).prior()
     if hub_height is not None:
-        if not 10.0 <= hub_height <= 250.0:
-            raise InputError(f"{hub_height:g} m is not a hub height (10-250 m)",
-                             field="--hub-height")
-        prior = replace(prior, hub_height=hub_height)
+        prior = replace(prior, hub_height=HUB_HEIGHT.check(hub_height, field="--hub-height"))
     if rotor_diameter is not None:
-        if not 10.0 <= rotor_diameter <= 300.0:
-            raise InputError(f"{rotor_diameter:g} m is not a rotor diameter (10-300 m)",
-                             field="--rotor-diameter")
-        prior = replace(prior, blade_length=rotor_diameter / 2.0)
+        d = ROTOR_DIAMETER.check(rotor_diameter, field="--rotor-diameter")
+        prior = replace(prior, blade_length=d / 2.0)
     if near is not None:
-        prior = replace(prior, near_xy=(float(near[0]), float(near[1])))
+        x = named(COORDINATE, "X").check(near[0], field="--near")
+        y = named(COORDINATE, "Y").check(near[1], field="--near")
+        prior = replace(prior, near_xy=(x, y))
     elif near_wgs84 is not None:
         from turbinefit.io.georef import GEOREF_FILE, read_flight_georef
 
+        lat = LATITUDE.check(near_wgs84[0], field="--near-wgs84")
+        lon = LONGITUDE.check(near_wgs84[1], field="--near-wgs84")
         georef = read_flight_georef(flight_dir)
         if georef is None:
             raise InputError(f"--near-wgs84 needs a georeferenced flight ({GEOREF_FILE}); "
                              "give --near X,Y in the flight's frame", path=flight_dir)
-        e = georef.enu(near_wgs84[0], near_wgs84[1], georef.altitude)
+        e = georef.enu(lat, lon, georef.altitude)
         prior = replace(prior, near_xy=(float(e[0]), float(e[1])))
     return prior
 
