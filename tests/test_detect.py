@@ -3,6 +3,7 @@ sizes, tip shifts, zoom, the detector pool."""
 
 from __future__ import annotations
 
+import sys
 import threading
 
 import numpy as np
@@ -421,3 +422,35 @@ def test_refine_leaves_photos_under_twice_the_input_alone(size: tuple[int, int],
     assert fine.refine_zoom(*size) == 1
     image = resize_image(held_out_samples[0].image, *size)
     np.testing.assert_array_equal(plain.detect(image), fine.detect(image))
+
+
+def test_a_signal_while_onnxruntime_imports_is_the_signal(monkeypatch: pytest.MonkeyPatch) -> None:
+    # onnxruntime's C++ module turns an exception raised during its initialisation (a
+    # signal's handler runs there) into "ImportError: initialization failed"
+    import builtins
+    import signal
+
+    from turbinefit import detect
+    from turbinefit.errors import Interrupted
+
+    real_import = builtins.__import__
+
+    def failing(name: str, *args: object, **kwargs: object) -> object:
+        if name == "onnxruntime":
+            raise ImportError("initialization failed") from Interrupted(signal.SIGTERM)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.delitem(sys.modules, "onnxruntime", raising=False)
+    monkeypatch.setattr(builtins, "__import__", failing)
+    with pytest.raises(Interrupted) as caught:
+        detect._onnxruntime()
+    assert caught.value.signum == signal.SIGTERM
+
+    def missing(name: str, *args: object, **kwargs: object) -> object:
+        if name == "onnxruntime":
+            raise ImportError("No module named 'onnxruntime'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", missing)
+    with pytest.raises(ImportError, match="No module named"):
+        detect._onnxruntime()

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.errors import interrupt_within
 from turbinefit.heatmaps import NonFiniteHeatmapError
 
 FloatArray = NDArray[np.float64]
@@ -97,8 +98,21 @@ def first_out_of_range(maps: NDArray[np.uint64], half: bool, count: int, lo: flo
     (``tf_first_out_of_range``). Its numpy twin is
     :func:`turbinefit.io.heatmap_files.check_heatmap_values` applied in turn."""
     assert _LIB is not None
-    return int(_LIB.tf_first_out_of_range(len(maps), _c(maps, np.uint64), int(half),
-                                          int(count), float(lo), float(hi)))
+    return int(_run(_LIB.tf_first_out_of_range, len(maps), _c(maps, np.uint64), int(half),
+                    int(count), float(lo), float(hi)))
+
+
+def _run(kernel: Any, *args: Any) -> Any:
+    """``kernel(*args)``. A signal handled while ctypes converts the arguments (numpy's
+    ``ndpointer`` checks run Python code, where handlers run) raises its interrupt, not the
+    ``ctypes.ArgumentError`` ctypes makes of it."""
+    try:
+        return kernel(*args)
+    except ctypes.ArgumentError as e:
+        interrupt = interrupt_within(e)
+        if interrupt is None:
+            raise
+        raise interrupt from None
 
 
 def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
@@ -142,7 +156,7 @@ def image_terms(
     fd = None if found is None else _c(found, np.uint8)
     nm = None if normal is None else _c(normal, np.float64)
     par = np.array([lam, pixel_sigma, margin, floor, _ROBUST[robust], robust_scale])
-    bad = _LIB.tf_image_terms(
+    bad = _run(_LIB.tf_image_terms,
         N, M, _c(poses, np.float64), _c(camera_params, np.float64), width, height,
         _c(A, np.float64), _c(B, np.float64), _opt(JAc), _opt(JBc), _opt(fr), M,
         _c(channels, np.int64), maps, int(half), _c(keyframes, np.int64),
@@ -163,8 +177,8 @@ def project(poses: FloatArray, camera_params: FloatArray, width: int, height: in
     uv = np.empty((N, M, 2))
     front = np.empty((N, M), dtype=np.uint8)
     inside = np.empty((N, M), dtype=np.uint8)
-    _LIB.tf_project(N, M, _c(poses, np.float64), _c(camera_params, np.float64), width, height,
-                    _c(world_p, np.float64), 0 if world_p.ndim == 2 else 3 * M, uv, front, inside)
+    _run(_LIB.tf_project, N, M, _c(poses, np.float64), _c(camera_params, np.float64), width,
+         height, _c(world_p, np.float64), 0 if world_p.ndim == 2 else 3 * M, uv, front, inside)
     return uv, front.astype(bool), inside.astype(bool)
 
 
@@ -179,7 +193,7 @@ def point_search(
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
-    bad = _LIB.tf_point_search_scaled(
+    bad = _run(_LIB.tf_point_search_scaled,
         N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
@@ -198,7 +212,7 @@ def line_search(
     N, M = uv.shape[:2]
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
-    bad = _LIB.tf_line_search_scaled(
+    bad = _run(_LIB.tf_line_search_scaled,
         N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
         _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
         step, threshold, target, found)
@@ -216,7 +230,7 @@ def block_tridiag_solve(D: FloatArray, B: FloatArray, b: FloatArray) -> FloatArr
     x = np.array(b, dtype=np.float64, order="C", copy=True)
     work = np.empty((2 * n, 6, 6))
     Bc = _c(B, np.float64) if n > 1 else np.zeros((1, 6, 6))
-    err = _LIB.tf_block_tridiag_solve(n, m, _c(D, np.float64), Bc, x, work)
+    err = _run(_LIB.tf_block_tridiag_solve, n, m, _c(D, np.float64), Bc, x, work)
     if err:
         raise np.linalg.LinAlgError(f"pivot block {err - 1} is not positive definite")
     return x

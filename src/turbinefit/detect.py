@@ -97,13 +97,13 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, interrupt_within
 from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS
 from turbinefit.heatmaps.model_info import TIP_SHIFT_TAPER_PX, ModelInfo, valid_tip_shift
 from turbinefit.heatmaps.peaks import peak, peaks
@@ -155,11 +155,24 @@ CHANNEL_COLOURS = np.array([
 ], dtype=np.float32)
 
 
+def _onnxruntime() -> Any:
+    """The ``onnxruntime`` module, imported on first use. A signal handled during that
+    import stops the command like any other: onnxruntime's C++ module would turn it into
+    ``ImportError: initialization failed``."""
+    try:
+        import onnxruntime
+    except ImportError as e:
+        interrupt = interrupt_within(e)
+        if interrupt is None:
+            raise
+        raise interrupt from None
+    return onnxruntime
+
+
 def _session_options(threads: int, spinning: bool) -> ort.SessionOptions:
     """onnxruntime options: ``threads`` intra-op threads, quiet; with ``spinning`` False,
     idle threads sleep instead of spinning (other work needs the cores)."""
-    import onnxruntime as ort
-
+    ort = _onnxruntime()
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = threads
     opts.inter_op_num_threads = 1
@@ -279,7 +292,7 @@ class HeatmapDetector:
                  spinning: bool = True, flip: bool | None = None,
                  tip_shift: float | None = None, zoom: bool | None = None,
                  input_scale: float | None = None, refine: bool = False) -> None:
-        import onnxruntime as ort
+        ort = _onnxruntime()
 
         self.path = Path(model) if model is not None else default_model_path()
         # a regular file of a sane size (not a FIFO onnxruntime would wait on)

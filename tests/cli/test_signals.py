@@ -247,3 +247,17 @@ def _swallowed_in_a_finaliser(Interrupted: type, RaisingOnSignals: type) -> None
         reached_end = True
     assert caught.value.signum == signal.SIGTERM and not reached_end
     assert sys.unraisablehook is hook  # the block's hook is gone with it
+
+
+def test_a_signal_after_the_work_is_done_changes_nothing() -> None:
+    # main has its status (every output complete): a signal then neither kills the
+    # interpreter silently as it finalises (status -15) nor prints "interrupted"; in the
+    # command run as 'python -m turbinefit.cli', whose argv[0] changes after start-up
+    code = ("import os, signal, sys\nsys.argv = ['-m']\nimport turbinefit.cli\n"
+            "sys.argv = ['/x/turbinefit/cli/__main__.py']\n"
+            "status = turbinefit.cli.main(['simulate', '--list-presets'])\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\nos.kill(os.getpid(), signal.SIGINT)\n"
+            "sys.exit(status)\n")
+    proc = run_code(code)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert "default" in proc.stdout

@@ -97,6 +97,12 @@ def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentPa
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``turbinefit`` command."""
+    status = _run_command(argv)
+    signals.ignore_from_now()  # the work is done (turbinefit.cli.signals)
+    return status
+
+
+def _run_command(argv: Sequence[str] | None) -> int:
     args_in = list(sys.argv[1:] if argv is None else argv)
     # the command is the first word that is not an option (the top level has no option
     # that takes a value)

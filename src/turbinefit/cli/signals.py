@@ -12,6 +12,15 @@ all three and every command.
   ignored (SIGKILL still ends the process). ``main`` prints ``turbinefit: interrupted
   (SIGTERM)`` and returns 128 + the signal number: 130, 143, 129.
 
+* **Once the command's work is done** (``main`` has its exit status: every output is
+  complete, renamed into place), :func:`ignore_from_now` ignores the three signals while
+  the interpreter exits. A signal that arrived before that point ends the command with
+  its line and 128 + the signal, even in its last milliseconds (outputs already in place
+  are complete and stay); one that arrives after it is too late to stop anything and
+  changes nothing: the command exits with its own status. Without this, a signal in the
+  interpreter's last moments was lost (status 0) or killed it silently (status -15), as
+  Python restores the default handlers when it finalises.
+
 A signal whose disposition is "ignore" when the command starts (``nohup`` ignores SIGHUP, a
 non-interactive shell's background job ignores SIGINT) stays ignored.
 """
@@ -20,6 +29,8 @@ from __future__ import annotations
 
 import os
 import sys
+
+from turbinefit.errors import Interrupted
 
 # Imported first of all by the command, so only what the interpreter has already loaded:
 # the C module of the signals (the ``signal`` module would load ``enum`` first, 30 ms).
@@ -35,23 +46,13 @@ else:
     except ImportError:  # pragma: no cover - not CPython
         import signal as _sig
 
+__all__ = ["Interrupted", "RaisingOnSignals", "exit_quietly_on_signals", "message",
+           "signal_of"]
+
 #: The signals every command handles like Ctrl-C, and their names.
 NAMES: dict[int, str] = {int(getattr(_sig, name)): name for name in ("SIGINT", "SIGTERM", "SIGHUP")
                          if hasattr(_sig, name)}
 SIGNALS = tuple(NAMES)
-
-
-class Interrupted(KeyboardInterrupt):
-    """A command was stopped by a signal. A ``KeyboardInterrupt`` so that everything that
-    cleans up after Ctrl-C (and lets ``except Exception`` pass it) does so for it too."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal_name(signum))
-        self.signum = signum
-
-    @property
-    def exit_status(self) -> int:
-        return exit_status(self.signum)
 
 
 def signal_name(signum: int) -> str:
@@ -91,14 +92,34 @@ def started_as_command() -> bool:
     return argv0 == "-m" or os.path.basename(argv0) in ("turbinefit", "turbinefit.exe")
 
 
+#: Whether this process is the ``turbinefit`` command, as found at start-up (while the
+#: package is imported ``python -m``'s ``argv[0]`` is ``-m``; later it is a path).
+_is_command = False
+
+
 def exit_quietly_on_signals() -> None:
     """Start-up: each handled signal prints its line and ends the process at once."""
+    global _is_command
     if not started_as_command():
         return
+    _is_command = True
     for sig in SIGNALS:
         try:
             if _handled(sig):
                 _sig.signal(sig, _exit_now)
+        except ValueError:  # pragma: no cover - not the main thread
+            return
+
+
+def ignore_from_now() -> None:
+    """The command's work is done: ignore its signals until the process ends (see the
+    module docstring). Only in the ``turbinefit`` command, not in a program calling
+    ``main``."""
+    if not _is_command:
+        return
+    for sig in SIGNALS:
+        try:
+            _sig.signal(sig, _sig.SIG_IGN)
         except ValueError:  # pragma: no cover - not the main thread
             return
 

@@ -16,7 +16,10 @@ processes (:func:`process_pool`). Their lifetime belongs to the sweep's process:
   bars create, is a thread lock in a worker;
 * the workers ignore SIGINT, SIGTERM and SIGHUP, which a terminal or a service manager sends
   to the whole process group: the parent handles them (and then kills the workers), so a
-  worker never dies first, printing its own traceback.
+  worker never dies first, printing its own traceback. A worker is started with them
+  blocked (the parent blocks them in its thread while the pool spawns a process, and a
+  process inherits its parent's mask), so that one arriving while the worker's interpreter
+  starts waits until :func:`start_worker` has set it to be ignored, and is then dropped.
 
 Each worker runs one solver thread (``OMP_NUM_THREADS=1``): two processes that each use
 every core slow each other several times over (measured on the tracker).
@@ -32,7 +35,10 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 #: ``prctl`` option: the signal a process gets when its parent dies (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
@@ -58,11 +64,33 @@ def _watch_parent(parent_pid: int) -> None:
             os._exit(1)
 
 
+#: The signals the parent handles and its workers ignore.
+PARENT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                       if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """:data:`PARENT_SIGNALS` blocked in this thread during the block (where the platform
+    can): one that arrives meanwhile is delivered after it; a process started inside it
+    starts with them blocked."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:  # pragma: no cover - not POSIX
+        yield
+        return
+    old = mask(signal.SIG_BLOCK, PARENT_SIGNALS)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, old)
+
+
 def start_worker(parent_pid: int) -> None:
     """The initializer of each worker (see the module docstring)."""
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    for sig in PARENT_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):  # blocked since it started: now ignored
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, PARENT_SIGNALS)
     with contextlib.suppress(ImportError):
         from tqdm import tqdm
 
@@ -85,6 +113,17 @@ def kill_workers(pool: cf.ProcessPoolExecutor) -> None:
             process.kill()
 
 
+class _Pool(cf.ProcessPoolExecutor):
+    """A process pool whose workers start with the parent's signals blocked: the pool
+    spawns them in the thread that submits (a spawned pool adds a worker per submission
+    until it has all)."""
+
+    def submit(self, fn: Callable[..., T], /, *args: Any,
+               **kwargs: Any) -> cf.Future[T]:
+        with signals_held():
+            return super().submit(fn, *args, **kwargs)
+
+
 @contextlib.contextmanager
 def process_pool(workers: int) -> Iterator[cf.ProcessPoolExecutor]:
     """A pool of ``workers`` spawned processes that end with this one; if the block raises
@@ -95,9 +134,8 @@ def process_pool(workers: int) -> Iterator[cf.ProcessPoolExecutor]:
     saved = os.environ.get("OMP_NUM_THREADS")
     os.environ["OMP_NUM_THREADS"] = "1"
     try:
-        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                                    initializer=start_worker,
-                                    initargs=(os.getpid(),)) as pool:
+        with _Pool(max_workers=workers, mp_context=mp.get_context("spawn"),
+                   initializer=start_worker, initargs=(os.getpid(),)) as pool:
             try:
                 yield pool
             except BaseException:
