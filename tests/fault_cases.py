@@ -325,6 +325,16 @@ def _cases() -> list[Case]:
     add("detect-model-not-onnx", cmd("detect", "{w}/flight/images", "--out", "{w}/out", "--quiet",
                                      "--model", "{w}/flight/camera.yaml"), None, r"camera\.yaml",
         r"ONNX")
+    labels = json.dumps({
+        "images": [{"id": 1, "file_name": "2.000000.png", "width": 64, "height": 48}],
+        "annotations": [{"image_id": 1, "category_id": 1,
+                         "keypoints": [1e9, 100, 2] + [0, 0, 0] * 5}],
+        "categories": [{"id": 1, "name": "turbine",
+                        "keypoints": ["base", "tower_top", "hub", "tip_1", "tip_2", "tip_3"]}]})
+    add("evaluate-keypoint-far-outside", cmd("evaluate", "--labels", "{w}/flight/l.json",
+                                             "--images-dir", "{w}/flight/images", "--quiet"),
+        write("l.json", labels), r"l\.json", r"annotations\[0\]\.keypoints\[0\]",
+        r"x 1000000000.0 px is out of range")
     add("evaluate-labels-fifo", cmd("evaluate", "--labels", "{w}/flight/l.json", "--images-dir",
                                     "{w}/flight/images", "--quiet"), fifo("l.json"), r"l\.json",
         r"named pipe", hang=True)
@@ -382,6 +392,22 @@ def _cases() -> list[Case]:
     add("coverage-no-summary", cmd("coverage", "{w}/flight", "--out", "{w}/out"),
         unlink("camera.yaml"), r"summary\.json", r"--flight")
     add("coverage-fifo-turbine", cmd(*cov), fifo("turbine.yaml"), TURB, "named pipe", hang=True)
+    for value, pat in (("1e-4", r"step 0.0001 m is out of range"), ("1e-5", r"--step"),
+                       ("1e9", r"between 0.01 and 5 m"), ("nan", r"step must be a number")):
+        add(f"coverage-step-{value}", cmd(*cov, "--step", value), None, pat, usage=True)
+    add("coverage-gsd-inf", cmd(*cov, "--gsd", "inf"), None, r"--gsd", usage=True)
+    add("coverage-blade-pitch", cmd(*cov, "--blade-pitch", "-91"), None,
+        r"blade angle -91.0 deg", usage=True)
+    # -- init: numbers of the prior
+    init = ("init", "{w}/flight", "--quiet")
+    for opts, pat in ((("--near", "nan,0"), r"--near: X must be a number, got nan"),
+                      (("--near-wgs84", "nan,nan"), r"latitude must be a number"),
+                      (("--near-wgs84", "91,0"), r"latitude 91.0 deg is out of range"),
+                      (("--near", "1e9,0"), r"X 1000000000.0 m is out of range"),
+                      (("--near", "5"), r"expected X,Y")):
+        add(f"init{'-'.join(opts)}", cmd(*init, *opts), None, pat, usage=True)
+    add("init-hub-height", cmd(*init, "--hub-height", "5"), None, r"--hub-height",
+        r"hub height 5.0 m")
     plan = ("plan", "{w}/flight", "--flight", "{w}/flight", "--out", "{w}/out", "--quiet")
     add("plan-no-turbine", cmd(*plan, "--standoff", "10"), unlink("turbine.yaml"), TURB,
         r"without fitted turbine")

@@ -61,8 +61,8 @@ def test_round_trip_exact(tmp_path: Path) -> None:
     imgs = tmp_path / "imgs"
     a, b, c = png(imgs / "a.png"), png(imgs / "sub" / "b.png", 10, 7), png(imgs / "c.png")
     rng = np.random.default_rng(3)
-    t1 = TurbineKeypoints(rng.uniform(-2, 12, size=(6, 2)), [2, 2, 1, 2, 0, 2])
-    t2 = TurbineKeypoints(rng.uniform(0, 8, size=(6, 2)), [0, 1, 2, 2, 2, 1])
+    t1 = TurbineKeypoints(rng.uniform(-1, 6, size=(6, 2)), [2, 2, 1, 2, 0, 2])
+    t2 = TurbineKeypoints(rng.uniform(0, 5.5, size=(6, 2)), [0, 1, 2, 2, 2, 1])
     t3 = TurbineKeypoints(np.zeros((6, 2)), [0] * 6)
     labels = [LabelledImage(a, 8, 6, (t1, t2)), LabelledImage(b, 10, 7, (t3,)),
               LabelledImage(c, 8, 6)]
@@ -242,7 +242,7 @@ def test_category_rule_prefers_turbine_names(tmp_path: Path) -> None:
         "annotations": [
             {"image_id": 1, "category_id": 1, "keypoints": [1, 1, 2, 2, 2, 2]},
             {"image_id": 1, "category_id": 2, "keypoints": [4, 5, 2]},
-            {"image_id": 1, "category_id": 3, "keypoints": [6, 7, 1]},
+            {"image_id": 1, "category_id": 3, "keypoints": [6, 5.5, 1]},
         ],
         "categories": [
             {"id": 1, "name": "person", "keypoints": ["nose", "left_eye"]},
@@ -493,3 +493,33 @@ def test_huge_integer_coordinate(tmp_path: Path) -> None:
     p.write_text(text)
     with raises_input_error(p, "annotations[0].keypoints[0]", "keypoint 'base' x: must be finite"):
         read_coco_keypoints(p, tmp_path)
+
+
+@pytest.mark.parametrize(("x", "y", "at", "match"), [
+    (1e9, 2.0, 0, r"keypoint 'base' x 1000000000.0 px is out of range: it must be between -1 "
+     r"and 320 px of the 320x240 image"),
+    (5.0, -1.5, 1, r"keypoint 'base' y -1.5 px"),
+    (5.0, 240.5, 1, r"keypoint 'base' y 240.5 px"),
+])
+def test_a_labelled_keypoint_outside_its_image_is_refused(
+        tmp_path: Path, x: float, y: float, at: int, match: str) -> None:
+    png(tmp_path / "a.png", 320, 240)
+    doc = {"images": [{"id": 1, "width": 320, "height": 240, "file_name": "a.png"}],
+           "annotations": [{"image_id": 1, "category_id": 1,
+                            "keypoints": [x, y, 2] + [0, 0, 0] * 5}],
+           "categories": [{"id": 1, "name": "turbine", "keypoints": list(KEYPOINT_NAMES)}]}
+    p = dump(tmp_path, doc)
+    with raises_input_error(p, f"annotations[0].keypoints[{at}]", match):
+        read_coco_keypoints(p, tmp_path)
+    # on its edge, or not labelled (visibility 0: the coordinates mean nothing), it is read
+    doc["annotations"][0]["keypoints"][:3] = [x, y, 0]
+    assert read_coco_keypoints(dump(tmp_path, doc), tmp_path)[0].turbines[0].labelled.sum() == 0
+    doc["annotations"][0]["keypoints"][:3] = [-1, 240, 1]
+    (img,) = read_coco_keypoints(dump(tmp_path, doc), tmp_path)
+    assert img.turbines[0].uv[0].tolist() == [-1.0, 240.0]
+
+
+def test_a_labelled_keypoint_outside_its_image_is_never_written(tmp_path: Path) -> None:
+    t = TurbineKeypoints(np.array([[9.5, 1.0]] + [[0.0, 0.0]] * 5), [2, 0, 0, 0, 0, 0])
+    with pytest.raises(ValueError, match=r"x 9.5 px is out of range.*8x6 image"):
+        LabelledImage(png(tmp_path / "a.png"), 8, 6, (t,))

@@ -21,7 +21,8 @@ Details: docs/inspection.md."""
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
-    from turbinefit.cli.common import DefaultsFormatter, number, positive_number
+    from turbinefit.cli.common import DefaultsFormatter, option
+    from turbinefit.jobs.coverage import BLADE_ANGLE_DEG, GSD_MM, STEP
 
     p: argparse.ArgumentParser = sub.add_parser(
         "coverage", help=help, description=DESCRIPTION,
@@ -34,13 +35,13 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
                    help="the photos' camera (camera_info YAML) instead of the flight's")
     p.add_argument("--out", type=Path, required=True, metavar="OUT_DIR", help="output folder")
-    p.add_argument("--gsd", type=positive_number, default=2.0, metavar="MM",
+    p.add_argument("--gsd", type=option(GSD_MM), default=2.0, metavar="MM",
                    help="a side counts as covered at this many mm per pixel or finer")
-    p.add_argument("--step", type=positive_number, default=0.5, metavar="M",
-                   help="span between samples along blades and tower [m]")
-    p.add_argument("--blade-pitch", type=number, default=0.0, metavar="DEG",
+    p.add_argument("--step", type=option(STEP), default=0.5, metavar="M",
+                   help=f"span between samples along blades and tower [m], {STEP.range_text()}")
+    p.add_argument("--blade-pitch", type=option(BLADE_ANGLE_DEG), default=0.0, metavar="DEG",
                    help="blade pitch [deg] if known (0: flat in the rotor plane)")
-    p.add_argument("--blade-twist", type=number, default=0.0, metavar="DEG",
+    p.add_argument("--blade-twist", type=option(BLADE_ANGLE_DEG), default=0.0, metavar="DEG",
                    help="blade twist at the root [deg] if known (the pitch's sense)")
     p.add_argument("--damage", type=Path, default=None, metavar="BOXES_CSV",
                    help="boxes drawn on photos (filename,width,height,class,xmin,ymin,xmax,ymax): "
@@ -57,11 +58,6 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from turbinefit.jobs.coverage import coverage_folder
 
-    for name, value in (("--blade-pitch", args.blade_pitch), ("--blade-twist", args.blade_twist)):
-        if not math.isfinite(value) or abs(value) > 90:
-            from turbinefit.errors import InputError
-
-            raise InputError(f"must be within +-90 deg, got {value:g}", field=name)
     camera = None
     if args.camera is not None:
         from turbinefit.io.camera_yaml import read_camera_yaml

@@ -77,6 +77,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
+from turbinefit.io.quantities import pixel
 from turbinefit.turbine.model import POINT_NAMES
 
 __all__ = [
@@ -89,6 +90,10 @@ __all__ = [
     "read_coco_keypoints",
     "write_coco_keypoints",
 ]
+
+#: How far [px] a labelled keypoint may lie beyond its image's edge pixels' centres (half
+#: a pixel is the edge itself; labelling tools clamp points to it).
+KEYPOINT_MARGIN_PX = 1.0
 
 #: Names of the six keypoints of a turbine, in order (= the model's ``POINT_NAMES``).
 KEYPOINT_NAMES: tuple[str, ...] = tuple(POINT_NAMES)
@@ -187,6 +192,12 @@ class LabelledImage:
         for t in turbines:
             if not isinstance(t, TurbineKeypoints):
                 raise ValueError(f"turbines must be TurbineKeypoints, got {type(t).__name__}")
+            for axis, n in enumerate((self.width, self.height)):
+                inside = pixel("xy"[axis], n, KEYPOINT_MARGIN_PX)
+                bad = [inside.problem(float(c)) for c in t.uv[t.labelled, axis]]
+                if any(bad):
+                    raise ValueError(f"labelled keypoint {next(b for b in bad if b)} of the "
+                                     f"{self.width}x{self.height} image")
         object.__setattr__(self, "turbines", turbines)
 
     def check_size(self, width: int, height: int) -> None:
@@ -360,8 +371,8 @@ def _find_image(r: _Reader, images_dir: Path, image_id: int | str, file_name: st
                   field)
 
 
-def _parse_keypoints(r: _Reader, value: Any, mapping: list[int], field: str
-                     ) -> TurbineKeypoints:
+def _parse_keypoints(r: _Reader, value: Any, mapping: list[int], field: str,
+                     size: tuple[int, int]) -> TurbineKeypoints:
     k = len(mapping)
     if not isinstance(value, list):
         raise r.error(f"expected a list of {3 * k} numbers, got {_kind(value)}", field)
@@ -377,6 +388,11 @@ def _parse_keypoints(r: _Reader, value: Any, mapping: list[int], field: str
         if isinstance(v, bool) or not isinstance(v, int | float) or v not in _VISIBILITIES:
             raise r.error(f"keypoint {name!r} visibility: expected 0, 1 or 2, got {_short(v)}",
                           f"{field}[{3 * j + 2}]")
+        if v > 0:  # a labelled point lies in its image (labelling tools clamp to its edges)
+            for axis, c, n, at in (("x", x, size[0], 3 * j), ("y", y, size[1], 3 * j + 1)):
+                why = pixel(f"keypoint {name!r} {axis}", n, KEYPOINT_MARGIN_PX).problem(c)
+                if why is not None:
+                    raise r.error(f"{why} of the {size[0]}x{size[1]} image", f"{field}[{at}]")
         uv[ours] = (x, y)
         vis[ours] = int(v)
     return TurbineKeypoints(uv, vis)
@@ -450,7 +466,9 @@ def read_coco_keypoints(json_path: StrPath, images_dir: StrPath) -> list[Labelle
         if cid not in used:
             continue
         kps = r.member(ann, "keypoints", field)
-        turbines[index[iid]].append(_parse_keypoints(r, kps, used[cid], f"{field}.keypoints"))
+        size = entries[index[iid]][1:]
+        turbines[index[iid]].append(_parse_keypoints(r, kps, used[cid], f"{field}.keypoints",
+                                                     size))
 
     return [LabelledImage(path, w, h, tuple(t))
             for (path, w, h), t in zip(entries, turbines, strict=True)]

@@ -42,6 +42,7 @@ from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.io.camera_yaml import read_camera_yaml
 from turbinefit.io.flight_folder import CAMERA_FILE, IMAGE_DIR, KEYFRAMES_FILE, TURBINE_FILE
 from turbinefit.io.georef import Georef, read_flight_georef
+from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import read_tum_lines
 from turbinefit.io.turbine_yaml import read_turbine_yaml
 from turbinefit.io.yaml_files import load_yaml_mapping
@@ -50,6 +51,15 @@ from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbinePar
 
 COVERAGE_OUTPUTS = OutputKind("coverage", frozenset({
     "coverage.csv", "sides.csv", "summary.json", "coverage.png", "damage.csv"}))
+
+#: ``--step``, between samples along a part [m]: from 1 cm (a 60 m blade is 6,000 samples
+#: a side; memory grows as keyframes x samples) to 5 m (still several samples on the
+#: shortest blade of the catalogue).
+STEP = Quantity("step", "m", 0.01, 5.0)
+#: ``--gsd``, the resolution a side must be seen at [mm/px].
+GSD_MM = Quantity("ground sampling distance", "mm/px", 0.0, 1000.0, lo_open=True)
+#: ``--blade-pitch`` and ``--blade-twist`` [deg].
+BLADE_ANGLE_DEG = Quantity("blade angle", "deg", -90.0, 90.0)
 
 #: Columns of ``damage.csv`` (:func:`format_damage_csv`).
 DAMAGE_COLUMNS = ("photo", "timestamp", "keyframe", "class", "xmin", "ymin", "xmax", "ymax",
@@ -307,10 +317,10 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     """
     t0 = time.perf_counter()
     fit_dir, out_dir = Path(fit_dir), Path(out_dir)
-    if not (step > 0 and math.isfinite(step)):
-        raise InputError(f"must be a positive number of metres, got {step}", field="--step")
-    if not (max_gsd_mm > 0 and math.isfinite(max_gsd_mm)):
-        raise InputError(f"must be a positive number, got {max_gsd_mm}", field="--gsd")
+    step = STEP.check(step, field="--step")
+    max_gsd_mm = GSD_MM.check(max_gsd_mm, field="--gsd")
+    BLADE_ANGLE_DEG.check(math.degrees(blade_pitch), field="--blade-pitch")
+    BLADE_ANGLE_DEG.check(math.degrees(blade_twist), field="--blade-twist")
     inputs = [fit_dir] + [Path(p) for p in (flight_dir, damage, damage_photos) if p is not None]
     COVERAGE_OUTPUTS.check(out_dir, inputs, overwrite)
     fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
