@@ -126,3 +126,37 @@ def test_a_bad_turbine_yaml_is_refused_before_reading(bag: Path, tmp_path: Path,
                           *ARGS, "--turbine-yaml", str(bad))
     assert_one_line_error(rc, stdout, err, r"turbine\.yaml.*missing")
     assert not (tmp_path / "o").exists()
+
+
+def test_a_full_disk_while_writing_the_images_names_the_image(
+        bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import builtins
+    import errno
+
+    import turbinefit.io.atomic as atomic
+
+    class Full:
+        def __init__(self, f: object) -> None:
+            self.f = f
+
+        def __enter__(self) -> Full:
+            return self
+
+        def __exit__(self, *exc: object) -> None:
+            self.f.close()  # type: ignore[attr-defined]
+
+        def write(self, data: bytes) -> int:
+            raise OSError(errno.ENOSPC, "No space left on device")  # no file name, as f.write
+
+    def opening(path: object, mode: str = "r", *args: object, **kwargs: object) -> object:
+        f = builtins.open(path, mode, *args, **kwargs)  # type: ignore[call-overload]
+        return Full(f) if ".png.tmp-" in str(path) else f
+
+    monkeypatch.setattr(atomic, "open", opening, raising=False)
+    out = tmp_path / "flight"
+    rc, stdout, err = run(capsys, "import", "rosbag", str(bag), "--out", str(out), *ARGS,
+                          "--every-m", "0", "--body-T-cam", "0,0,0,0,0,0,1")
+    assert_one_line_error(rc, stdout, err, rf"^turbinefit: error: no space left on device "
+                          rf"writing {re.escape(str(out))}/images/[0-9.]+\.png$")
+    assert not out.exists() and list(tmp_path.iterdir()) == []

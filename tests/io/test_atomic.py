@@ -267,3 +267,71 @@ def test_an_output_made_by_another_process_meanwhile_is_named_as_such(tmp_path: 
             out.mkdir()
             (out / "theirs.txt").write_text("theirs")
     assert os.listdir(out) == ["theirs.txt"] and leftovers(tmp_path) == []
+
+
+def _without_override() -> None:
+    """In a child, before it runs Python: without root's right to write anything, as a user
+    runs (CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH dropped from the bounding set, which
+    root's capabilities come from at exec)."""
+    if os.geteuid() != 0:
+        return
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    for cap in (1, 2):  # CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH (linux/capability.h)
+        if libc.prctl(24, cap, 0, 0, 0) != 0:  # PR_CAPBSET_DROP
+            os._exit(77)
+
+
+def test_overwriting_an_output_this_user_cannot_empty_is_refused_before_any_work(
+        tmp_path: Path) -> None:
+    # the old outputs could be moved aside but never deleted: refused up front, nothing
+    # changed, no hidden folder left (was: exit 0, a RuntimeWarning and a hidden .old)
+    import subprocess
+    import sys
+
+    root = tmp_path / "shared"
+    out = root / "out"
+    out.mkdir(parents=True)
+    (out / "summary.json").write_text("{}")
+    os.chmod(tmp_path, 0o755)
+    os.chmod(root, 0o777)
+    os.chmod(out, 0o555)  # its entries cannot be deleted (but by root)
+    code = ("import sys\nfrom turbinefit.io import atomic_output_dir\n"
+            "from turbinefit.errors import InputError\n"
+            "try:\n    with atomic_output_dir(sys.argv[1], overwrite=True) as tmp:\n"
+            "        (tmp / 'summary.json').write_text('new')\n"
+            "except InputError as e:\n    print(e, file=sys.stderr)\n    sys.exit(2)\n")
+    try:
+        proc = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True,
+                              text=True, timeout=60, preexec_fn=_without_override)
+    finally:
+        os.chmod(out, 0o755)
+    if proc.returncode == 77:
+        pytest.skip("root without the capability to drop its own capabilities")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == (f"{out}: cannot replace it: {out} is not writable, so its old "
+                           "contents could not be deleted\n")
+    assert sorted(p.name for p in root.iterdir()) == ["out"]
+    assert (out / "summary.json").read_text() == "{}"
+
+
+def test_replaced_outputs_that_cannot_be_deleted_after_all_are_named(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    import turbinefit.io.atomic as atomic
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "a.txt").write_text("old")
+    monkeypatch.setattr(atomic.shutil, "rmtree", lambda p, ignore_errors=False: None)
+    with pytest.raises(InputError, match=r"the new outputs are in place, but the replaced ones "
+                       r"could not all be deleted: delete .*\.out\.old-") as e:
+        with atomic_output_dir(out, overwrite=True) as tmp:
+            (tmp / "a.txt").write_text("new")
+    assert (out / "a.txt").read_text() == "new"
+    old = Path(str(e.value).rsplit("delete ", 1)[1].removesuffix(" by hand"))
+    assert (old / "a.txt").read_text() == "old"
+    monkeypatch.undo()
+    shutil.rmtree(old)

@@ -51,7 +51,6 @@ import re
 import shutil
 import stat
 import uuid
-import warnings
 import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -344,6 +343,20 @@ def check_output_dir(path: StrPath, overwrite: bool = False,
                              path=p) from e
         if reason is not None:
             raise InputError(f"refusing to overwrite: {reason}", path=p)
+    locked = _undeletable(p)
+    if locked is not None:
+        raise InputError(f"cannot replace it: {locked} is not writable, so its old contents "
+                         "could not be deleted", path=p)
+
+
+def _undeletable(path: Path) -> Path | None:
+    """The first directory under ``path`` (itself included) whose entries this process may
+    not delete (no write or search permission; a root that may is not refused), or None."""
+    for top, dirs, _files in os.walk(path, onerror=None):
+        dirs[:] = [d for d in dirs if not os.path.islink(os.path.join(top, d))]
+        if not os.access(top, os.W_OK | os.X_OK):
+            return Path(top)
+    return None
 
 
 def _move_into_place(tmp: Path, path: Path) -> None:
@@ -369,9 +382,9 @@ def _move_into_place(tmp: Path, path: Path) -> None:
                              path=path) from e
         raise
     shutil.rmtree(old, ignore_errors=True)
-    if os.path.lexists(old):
-        warnings.warn(f"could not delete the replaced directory {old}", RuntimeWarning,
-                      stacklevel=3)
+    if os.path.lexists(old):  # checked before (check_output_dir): permissions changed since
+        raise InputError(f"the new outputs are in place, but the replaced ones could not all "
+                         f"be deleted: delete {old} by hand", path=path)
 
 
 @contextlib.contextmanager

@@ -475,7 +475,7 @@ def _write_images(tmp_dir: Path, final_dir: Path, flight: Flight,
         try:
             (tmp_dir / name).write_bytes(encode_png(img))
         except OSError as e:
-            raise InputError(f"cannot write: {e.strerror or e}", path=final_dir / name) from e
+            raise write_error(e, final_dir / name) from e
         count += 1
     if count != flight.num_keyframes:
         raise InputError(f"{count} photos for {flight.num_keyframes} keyframes", path=final_dir)

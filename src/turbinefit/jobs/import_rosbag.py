@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.geometry.se3 import SE3, quat_conjugate, quat_log, quat_multiply
-from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
+from turbinefit.io.atomic import StrPath, read_text, write_bytes_atomic, write_text_atomic
 from turbinefit.io.camera_yaml import format_camera_yaml
 from turbinefit.io.flight_folder import (
     CAMERA_FILE,
@@ -232,7 +232,8 @@ def import_rosbag(bag_path: StrPath, out_dir: StrPath, options: RosbagOptions, *
                         f"{options.image_topic!r} at {rb.stamp_text(int(t_ns[i]))}: image is "
                         f"{w}x{h} but {info_topic!r} says {camera.width}x{camera.height}",
                         path=bag)
-                (tmp / IMAGE_DIR / (keyframe_stem(wanted[i]) + suffix)).write_bytes(data)
+                write_bytes_atomic(tmp / IMAGE_DIR / (keyframe_stem(wanted[i]) + suffix), data,
+                                   fsync=False)
 
     if turbine_text is None:
         notes.append("no turbine.yaml: fit needs one (--turbine-yaml FILE, or write it by hand)")
