@@ -4,9 +4,13 @@ ends.
 For each command (``track --from-images``, ``detect`` and ``fit --from-images`` on a small
 simulated flight with photos; ``--commands`` picks), first timed once undisturbed, then run
 ``--runs`` times, each sent one signal (drawn from the three) at a moment drawn uniformly
-from 0 to 1.2 times that time, so that start-up, module imports (onnxruntime's included),
-detection, the compiled kernels, writing and the last milliseconds are all hit. A run passes
-if it ends with
+from the end of Python's own start-up to 1.2 times that time, so that the command's
+start-up, module imports (numpy's and onnxruntime's C modules included), detection, the
+compiled kernels, writing and the last milliseconds are all hit. Python's own start-up (the
+interpreter, ``site``, ``runpy``: the time ``python -c pass`` takes, about 20 ms) is left
+out: no Python program runs code of its own then, so a signal there ends it as Python
+does (SIGINT: a ``KeyboardInterrupt`` traceback from ``runpy``; SIGTERM: killed). A run
+passes if it ends with
 
 * 128 + the signal, the one line ``turbinefit: interrupted (SIG...)`` on stderr and no
   temporary folder or reservation left beside its output; or
@@ -98,6 +102,13 @@ def main() -> None:
         subprocess.run([sys.executable, "-m", "turbinefit.cli", "simulate", str(flight),
                         "--keyframes", str(args.keyframes), "--images", "--quiet"], check=True)
         commands = _commands(flight, work)
+        starts = []
+        for _ in range(5):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "pass"], check=True)
+            starts.append(time.perf_counter() - t)
+        python_start = sorted(starts)[2]
+        results["python_start_s"] = round(python_start, 4)
         for name in args.commands.split(","):
             argv = commands[name]
             clean = _run(argv, work, None, signal.SIGINT)
@@ -107,7 +118,7 @@ def main() -> None:
             bad: list[dict[str, object]] = []
             for _ in range(args.runs):
                 sig = rng.choice(SIGNALS)
-                delay = rng.uniform(0.0, 1.2 * duration)
+                delay = rng.uniform(python_start, 1.2 * duration)
                 r = _run(argv, work, delay, sig)
                 verdict = _judge(r, sig)
                 counts[verdict] = counts.get(verdict, 0) + 1

@@ -261,3 +261,55 @@ def test_a_signal_after_the_work_is_done_changes_nothing() -> None:
     proc = run_code(code)
     assert (proc.returncode, proc.stderr) == (0, "")
     assert "default" in proc.stdout
+
+
+def test_a_signal_sent_again_while_the_hook_still_runs_is_not_lost(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # the signal swallowed in a finaliser is sent again from a thread; when that comes
+    # while the hook itself still runs (here: starting the thread takes 50 ms), raising it
+    # there would be swallowed again: it must wait for the next sending
+    import threading
+
+    from turbinefit.cli.signals import Interrupted, RaisingOnSignals
+
+    start = threading.Thread.start
+
+    def slow_start(self: threading.Thread) -> None:
+        start(self)
+        time.sleep(0.05)
+
+    monkeypatch.setattr(threading.Thread, "start", slow_start)
+    inherited = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        _swallowed_in_a_finaliser(Interrupted, RaisingOnSignals)
+    finally:
+        signal.signal(signal.SIGTERM, inherited)
+
+
+@pytest.mark.parametrize("made", ["ImportError", "InputError", "swallowed"])
+def test_whatever_a_library_makes_of_a_signal_ends_the_command_as_the_signal(
+        made: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    # numpy's C modules turn an exception raised while they initialise into an ImportError
+    # that keeps nothing of it; other code may wrap it in its own error, or swallow it
+    import turbinefit.cli.report
+    from turbinefit.cli import main
+    from turbinefit.errors import InputError
+
+    def run(args: object) -> int:
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            if made == "ImportError":
+                raise ImportError("numpy: PyCapsule_Import could not import module") from None
+            if made == "InputError":
+                raise InputError("cannot read: interrupted", path="x") from None
+        return 0
+
+    monkeypatch.setattr(turbinefit.cli.report, "run", run)
+    inherited = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        status = main(["report", "anywhere"])
+    finally:
+        signal.signal(signal.SIGTERM, inherited)
+    assert (status, capsys.readouterr().err) == (143, "turbinefit: interrupted (SIGTERM)\n")

@@ -107,29 +107,41 @@ def _run_command(argv: Sequence[str] | None) -> int:
     # the command is the first word that is not an option (the top level has no option
     # that takes a value)
     command = next((a for a in args_in if not a.startswith("-")), None)
-    with signals.RaisingOnSignals():
+    with signals.RaisingOnSignals() as guard:
         try:
             parser = build_parser({command} if command in COMMANDS else ())
             args = parser.parse_args(args_in)
+            status = int(_module(args.command).run(args))
+            if guard.caught is not None:  # a library swallowed the signal: it still counts
+                return _interrupted(guard.caught)
+            return status
+        except BaseException as exc:
+            # once a signal came, whatever ends the command is its doing (a library may
+            # have made another exception of it: numpy's C modules an ImportError)
+            if guard.caught is not None:
+                return _interrupted(guard.caught)
+            if isinstance(exc, KeyboardInterrupt):  # Ctrl-C in a program calling main
+                return _interrupted(signals.signal_of(exc))
             from turbinefit.errors import TurbinefitError
 
-            try:
-                return int(_module(args.command).run(args))
-            except TurbinefitError as exc:
+            if isinstance(exc, TurbinefitError):
                 print(f"turbinefit: error: {exc}", file=sys.stderr)
                 return EXIT_BAD_INPUT
-            except OSError as exc:
+            if isinstance(exc, OSError):
                 from turbinefit.io.atomic import is_disk_full, write_error
 
-                if not is_disk_full(exc):
-                    raise
-                print(f"turbinefit: error: {write_error(exc, exc.filename)}", file=sys.stderr)
-                return EXIT_BAD_INPUT
-        except KeyboardInterrupt as exc:  # and Interrupted: SIGTERM, SIGHUP
-            signum = signals.signal_of(exc)
-            print(signals.message(signum), file=sys.stderr)
-            return signals.exit_status(signum)
+                if is_disk_full(exc):
+                    print(f"turbinefit: error: {write_error(exc, exc.filename)}",
+                          file=sys.stderr)
+                    return EXIT_BAD_INPUT
+            raise
         finally:  # a job that failed before writing still holds its output's reservation
             atomic = sys.modules.get("turbinefit.io.atomic")
             if atomic is not None:
                 atomic.release_all_outputs()
+
+
+def _interrupted(signum: int) -> int:
+    """Print the line of a command stopped by ``signum``; its exit status."""
+    print(signals.message(signum), file=sys.stderr)
+    return signals.exit_status(signum)

@@ -124,32 +124,39 @@ def ignore_from_now() -> None:
             return
 
 
-def _send_later(signum: int, delay_s: float = 0.001) -> None:
-    import time
-
-    time.sleep(delay_s)
-    os.kill(os.getpid(), signum)
+#: How often [s] a swallowed signal is sent again until it is raised, and for how long.
+RESEND_EVERY_S, RESEND_FOR_S = 0.005, 5.0
 
 
 class RaisingOnSignals:
     """While the ``with`` block runs, the first handled signal raises :class:`Interrupted`
     in the main thread and later ones are ignored; the previous handlers are restored after
     it. Outside the main thread (a caller's worker thread) this does nothing.
+    :attr:`caught` is the signal received, if any: whatever exception ends the command
+    after it is the signal's doing (a library may have made another of it).
 
     Python swallows an exception raised where nobody can catch it, in a weak reference's
     callback or a ``__del__`` (the import system runs such callbacks), and hands it to
-    ``sys.unraisablehook``: the block's hook sends the signal again, so that it is raised
-    once that code has returned instead of being lost."""
+    ``sys.unraisablehook``: the block's hook has the signal sent again, every few
+    milliseconds from another thread until it is raised outside the hook (raised inside
+    it, it would be swallowed again), so that it is raised once that code has returned
+    instead of being lost."""
 
     def __init__(self) -> None:
         self.caught: int | None = None
+        #: A swallowed signal being sent again, until it is raised.
+        self.pending: int | None = None
         self.saved: dict[int, object] = {}
         self.saved_hook: Callable[[Any], object] | None = None
 
     def _raise(self, signum: int, frame: FrameType | None) -> None:
-        if self.caught is not None:  # cleaning up after the first one: let it finish
-            return
+        if self.pending is None:
+            if self.caught is not None:  # cleaning up after the first one: let it finish
+                return
+        elif _inside(frame, self._unraisable.__code__):
+            return  # raised here it would be swallowed again: the next sending comes later
         self.caught = signum
+        self.pending = None
         raise Interrupted(signum)
 
     def _unraisable(self, unraisable: Any) -> None:
@@ -157,12 +164,26 @@ class RaisingOnSignals:
         if isinstance(exc, Interrupted) and self.caught == exc.signum:
             # swallowed where it was raised: send it again from another thread, so that it
             # is raised after this hook and the code that swallowed it have returned
-            import threading
+            if self.pending is None:
+                import threading
 
-            self.caught = None
-            threading.Thread(target=_send_later, args=(exc.signum,), daemon=True).start()
+                self.pending = exc.signum
+                threading.Thread(target=self._resend, daemon=True,
+                                 name="turbinefit-signal-resend").start()
             return
         (self.saved_hook or sys.__unraisablehook__)(unraisable)
+
+    def _resend(self) -> None:
+        import time
+
+        end = time.monotonic() + RESEND_FOR_S
+        while time.monotonic() < end:
+            signum = self.pending
+            if signum is None:
+                return
+            os.kill(os.getpid(), signum)
+            time.sleep(RESEND_EVERY_S)
+
 
     def __enter__(self) -> RaisingOnSignals:
         for sig in SIGNALS:
@@ -181,7 +202,18 @@ class RaisingOnSignals:
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
+        self.pending = None  # the block is over: stop sending a swallowed signal again
         for sig, previous in self.saved.items():
             _sig.signal(sig, previous)  # type: ignore[arg-type]
         if self.saved_hook is not None:
             sys.unraisablehook = self.saved_hook
+
+
+def _inside(frame: FrameType | None, code: object) -> bool:
+    """Whether ``frame`` or one of its callers runs ``code``."""
+    while frame is not None:
+        if frame.f_code is code:
+            return True
+        frame = frame.f_back
+    return False
+
