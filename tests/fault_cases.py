@@ -274,9 +274,11 @@ def _cases() -> list[Case]:
         write("c.yaml", "lambda_pair: .nan\n"), r"lambda_pair")
     for opts, pat in ((["--preset", "nope"], r"--preset"), (["--max-iterations", "0"], r">= 1"),
                       (["--pixel-sigma", "-1"], r"pixel_sigma"),
-                      (["--lambda-points", "nan"], r"lambda_points"),
+                      (["--lambda-points", "-1"], r"lambda_points"),
                       (["--points", "none", "--lines", "none"], r"both be none")):
         add(f"fit-option-{'-'.join(opts)}", fit(*opts), None, pat)
+    add("fit-option-lambda-points-nan", fit("--lambda-points", "nan"), None,
+        r"--lambda-points: expected a finite number", usage=True)
     add("fit-out-is-input", cmd("fit", "{w}/flight", "--out", "{w}/flight"), None, r"input")
     add("fit-out-in-file", cmd("fit", "{w}/flight", "--out", "{w}/camera.yaml/x"),
         lambda f: (f.parent / "camera.yaml").write_text("x"), r"camera\.yaml", r"not a directory")
@@ -297,7 +299,8 @@ def _cases() -> list[Case]:
                               False),
                              (["--preset", "nope"], r"--preset", False),
                              (["--turbine", "nope"], r"turbine", False),
-                             (["--drift-m", "nan"], r"drift", False),
+                             (["--drift-m", "nan"], r"--drift-m: expected a finite", True),
+                             (["--drift-m", "-1"], r"drift", False),
                              (["--heatmap-noise", "-1"], r"--heatmap-noise", False),
                              (["--heatmap-size", "axb"], r"WIDTHxHEIGHT", True),
                              (["--keyframes", "0"], r"keyframes", True),

@@ -381,7 +381,7 @@ def test_fit_unreadable_config_file(sim_flight_dir: Path, tmp_path: Path,
 
 @pytest.mark.parametrize(("args", "patterns"), [
     (["--preset", "nope"], [r"--preset", r"'nope'", r"paper-best"]),
-    (["--lambda-points", "nan"], [r"lambda_points", r"non-negative"]),
+    (["--lambda-points", "-1"], [r"lambda_points", r"non-negative"]),
     (["--pixel-sigma", "-1"], [r"pixel_sigma", r"positive"]),
     (["--max-iterations", "0"], [r"max_iterations", r">= 1"]),
     (["--points", "none", "--lines", "none"], [r"both be none"]),

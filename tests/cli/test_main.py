@@ -179,6 +179,12 @@ def test_every_option_of_several_numbers_is_tested_with_negative_values() -> Non
     (["import", "dji", "p.jpg", "--out", "o", "--origin", "0,0,1e9"],
      r"altitude 1000000000.0 m is out of range"),
     (["coverage", "fit", "--out", "o", "--gsd", "inf"], r"--gsd"),
+    (["import", "dji", "p.jpg", "--out", "o", "--origin", "95,0,10"],
+     r"--origin: latitude 95.0 deg is out of range"),
+    (["fit", "f", "--out", "o", "--lambda-points", "nan"],
+     r"--lambda-points: expected a finite number, got 'nan'"),
+    (["simulate", "o", "--turbine-noise", "nan"], r"--turbine-noise: expected a finite number"),
+    (["simulate", "o", "--heatmap-noise", "inf"], r"--heatmap-noise: expected a finite number"),
 ])
 def test_numbers_out_of_range_are_usage_errors(argv: list[str], pattern: str, tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str],
