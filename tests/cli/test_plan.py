@@ -49,7 +49,9 @@ def test_plan_writes_waypoints_and_coverage_reads_them(
     assert {r["part"] for r in photos} == {"blade_A", "blade_B", "blade_C", "tower"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["min_rotor_clearance_m"] >= 10.0 - 1e-3
-    assert summary["gsd_mm_px"] == pytest.approx(1000 * 10 / 7350, abs=1e-3)
+    flown = 10.0 + summary["clearance_check"]["margin_m"]
+    assert summary["gsd_mm_px"] == pytest.approx(1000 * flown / 7350, abs=1e-3)
+    assert summary["min_tower_clearance_m"] >= summary["tower_clearance_m"] == 2.5
     assert summary["length_m"] > 0 and summary["photos"] == len(photos)
     assert_valid_png(out / "path.png")
     cov = tmp_path / "cov"
@@ -94,8 +96,8 @@ def test_plan_of_a_georeferenced_flight(fit_dir: Path, sim_flight_dir: Path, cam
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["--standoff", "200"], r"--standoff.*meets the rotor"),
-    (["--standoff", "10", "--gsd", "0.5"], r"--gsd.*1\.36 mm/px at a stand-off of 10 m"),
+    (["--standoff", "99"], r"--standoff.*meets the rotor"),
+    (["--standoff", "10", "--gsd", "0.5"], r"--gsd.*1\.40 mm/px at a stand-off of 10 m"),
     (["--standoff", "10", "--tower-clearance", "12"], r"--tower-clearance.*at most the stand-off"),
 ])
 def test_plan_refuses(argv: list[str], words: str, fit_dir: Path, camera_yaml: Path,

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,8 +61,15 @@ TOWER_ORDER = (2, 3, 0, 1)
 #: metre of span, :func:`~turbinefit.turbine.solid.blade_profile`: 0.14 at the root's
 #: ramp), for the planner's distances from a blade.
 SECTION_SLOPE = 0.15
-#: The least tower clearance by default [m]: a drone's radius and its hovering error
-#: (see ``docs/inspection.md``).
+#: The least stand-off a plan should be asked for [m] (``plan --standoff``; see
+#: ``docs/inspection.md``): a drone's radius with its propellers (0.4 m, a DJI Matrice
+#: 30), its hovering error without RTK (1.5 m horizontally, DJI's figure) and the model's
+#: error at the blades (1.1 m: the fitted blades' points to 0.5 m, and the flat section
+#: against a real blade's, twisted 14 deg at the root: its edge 0.01 blade lengths off).
+MIN_STANDOFF = 3.0
+#: The least tower clearance [m] (``plan --tower-clearance``, and the default's floor):
+#: the drone's radius and hovering error; the tower and the nacelle are modelled better
+#: than the blades.
 MIN_TOWER_CLEARANCE = 2.0
 
 
@@ -132,8 +140,10 @@ class Plan:
         gsd_mm: the resolution at the stand-off [mm/px].
         skipped: per (part, side) the stations no view could clear.
         stations: per (part, side) the stations planned (photos).
-        min_rotor_clearance: least distance of the path from the rotor [m].
-        min_tower_clearance: least distance of the path from the tower and nacelle [m].
+        min_rotor_clearance: least distance of the path (waypoints and legs) from the
+            blades and the spinner [m], from :func:`check_plan` (a lower bound).
+        min_tower_clearance: the same from the tower and the nacelle [m].
+        check_s: seconds :func:`check_plan` took.
     """
 
     waypoints: list[Waypoint]
@@ -142,6 +152,7 @@ class Plan:
     stations: dict[tuple[int, int], int] = field(default_factory=dict)
     min_rotor_clearance: float = math.inf
     min_tower_clearance: float = math.inf
+    check_s: float = 0.0
 
     @property
     def length_m(self) -> float:
@@ -354,7 +365,12 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                 path += legs
             path.append(w)
     plan.waypoints = path
+    if not plan.photos:
+        raise PlanError(f"no station has a clear view at a stand-off of {d:g} m within the "
+                        f"gimbal's {opt.max_gimbal_up_deg:g} deg upward pitch", "max_gimbal_up_deg")
+    t0 = time.perf_counter()
     check_plan(plan, surface, options, samples)
+    plan.check_s = time.perf_counter() - t0
     return plan
 
 
