@@ -12,8 +12,8 @@ import pytest
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import world_T_cam_from_angles
-from turbinefit.inspection.coverage import flight_coverage
 from turbinefit.inspection.clearance import ROTOR, STRUCTURE, solid_samples
+from turbinefit.inspection.coverage import flight_coverage
 from turbinefit.inspection.plan import (
     MIN_STANDOFF,
     PlanError,

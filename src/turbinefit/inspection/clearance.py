@@ -31,6 +31,7 @@ a 16-gon), and trimesh's closest-point query (a dev-only dependency here) needs 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -185,7 +186,7 @@ def _ellipse_rings(centres: FloatArray, ax: FloatArray, ay: FloatArray, rx: Floa
                     + (b[:, None] * np.sin(phi))[..., None] * y[:, None])
 
         pts = [at(t) for t in np.linspace(0.0, 1.0, 5)]
-        arc = sum(np.linalg.norm(q - p, axis=-1) for p, q in zip(pts[:-1], pts[1:], strict=True))
+        arc = sum(np.linalg.norm(q - p, axis=-1) for p, q in itertools.pairwise(pts))
         across = 1.02 * float(np.max(arc))  # the chords of the sub-steps, with a margin
     return np.concatenate(out), 0.5 * (ring_arc + across)
 

@@ -27,8 +27,8 @@ from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
-from turbinefit.inspection.coverage import side_names
 from turbinefit.inspection.clearance import LEG_STEP, solid_samples
+from turbinefit.inspection.coverage import side_names
 from turbinefit.inspection.plan import (
     MIN_STANDOFF,
     MIN_TOWER_CLEARANCE,
