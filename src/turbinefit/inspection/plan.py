@@ -16,12 +16,16 @@ seen); a station no turn clears is left out and counted. A stand-off at which mo
 half the stations of a blade side are blocked by the rotor "meets the rotor" (an error).
 
 **Clearance.** The camera keeps ``standoff`` from every blade and the spinner along the
-whole path (checked every quarter metre), and ``tower_clearance`` (a quarter of the
-stand-off unless given) from the tower and the nacelle (which the suction sides' stations
-need to come near), and stays above ``min_altitude``. Consecutive waypoints are joined
-straight if that leg is clear, else through transit planes parallel to the rotor: one
-upwind of the spinner, one downwind of the nacelle, crossing between them through the
-gap between blades that points highest.
+whole path, and ``tower_clearance`` (a quarter of the stand-off, at least
+:data:`MIN_TOWER_CLEARANCE`, unless given) from the tower and the nacelle (which the
+suction sides' stations need to come near), and stays above ``min_altitude``; the
+planner's own distances (closed-form bounds per shape, checked every quarter metre) keep
+:func:`check_margin` more, and the finished path is checked by :func:`check_plan` with
+the independent distances of :mod:`turbinefit.inspection.clearance` (a plan failing it
+is refused). Consecutive waypoints are joined straight if that leg is clear, else through
+transit planes parallel to the rotor: one upwind of the spinner, one downwind of the
+nacelle, crossing between them through the gap between blades that points highest; a
+station no clear route reaches is left out and counted.
 
 **Order.** Upwind first (for each blade A, B, C: leading edge, pressure side, trailing
 edge), then downwind (each blade's suction side), then the tower's faces (back, left,
