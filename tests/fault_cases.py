@@ -416,8 +416,17 @@ def _cases() -> list[Case]:
         r"without fitted turbine")
     add("plan-no-poses", cmd(*plan, "--standoff", "10"), unlink("keyframes.txt"), KF,
         r"without fitted poses")
-    add("plan-standoff-meets-rotor", cmd(*plan, "--standoff", "500"), None, r"--standoff",
+    add("plan-standoff-meets-rotor", cmd(*plan, "--standoff", "99"), None, r"--standoff",
         r"meets the rotor")
+    # issue 49's audit: stand-offs below the least safe one were planned into the blades;
+    # the gimbal's range took nan and 1000, and -1000 failed naming a hidden temporary file
+    for value in ("0.5", "1e-6", "1"):
+        add(f"plan-standoff-{value}", cmd(*plan, "--standoff", value), None,
+            r"--standoff", r"out of range: it must be between 3 and 100 m", usage=True)
+    for value, words in (("nan", r"must be a number, got nan"), ("1000", r"out of range"),
+                         ("-1000", r"out of range")):
+        add(f"plan-gimbal-{value}", cmd(*plan, "--standoff", "10", "--max-gimbal-up", value),
+            None, r"--max-gimbal-up", words, usage=True)
     add("plan-gsd-unreachable", cmd(*plan, "--standoff", "10", "--gsd", "0.01"), None,
         r"--gsd", r"mm/px at a stand-off of 10 m")
     return c

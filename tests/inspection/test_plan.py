@@ -4,6 +4,7 @@ photos reach, and the plans refused."""
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -11,10 +12,23 @@ import pytest
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import world_T_cam_from_angles
+from turbinefit.inspection.clearance import ROTOR, STRUCTURE, solid_samples
 from turbinefit.inspection.coverage import flight_coverage
-from turbinefit.inspection.plan import PlanError, PlanOptions, _Clearance, _densify, plan_path
+from turbinefit.inspection.plan import (
+    MIN_STANDOFF,
+    PlanError,
+    PlanOptions,
+    Waypoint,
+    _Clearance,
+    _densify,
+    check_margin,
+    check_plan,
+    plan_path,
+    tower_clearance,
+)
 from turbinefit.inspection.surface import TOWER, TurbineSurface
-from turbinefit.turbine.model import TurbineParams
+from turbinefit.sim.turbines import REALISTIC_GEOMETRY, preset_turbine
+from turbinefit.turbine.model import TurbineGeometry, TurbineParams
 
 TURBINE = TurbineParams(3.0, -2.0, 60.0, math.radians(40.0), 4.0, math.radians(25.0), 30.0)
 CAM = PinholeCamera(1200, 900, 2000.0, 2000.0, 599.5, 449.5)  # 4 mm/px at 8 m
@@ -27,7 +41,11 @@ def surface() -> TurbineSurface:
 
 @pytest.fixture(scope="module")
 def plan(surface: TurbineSurface):
-    return plan_path(surface, CAM, PlanOptions(8.0, 4.0))
+    return plan_path(surface, CAM, PlanOptions(8.0, 4.2))
+
+
+def margin(surface: TurbineSurface) -> float:
+    return check_margin(solid_samples(surface))
 
 
 def poses(photos):
@@ -37,7 +55,9 @@ def poses(photos):
 
 
 def test_photos_see_their_side_from_the_standoff(surface: TurbineSurface, plan) -> None:
-    assert plan.gsd_mm == pytest.approx(4.0)
+    flown = 8.0 + margin(surface)  # the stand-off and the check's margin
+    assert 0.1 < flown - 8.0 < 0.4
+    assert plan.gsd_mm == pytest.approx(1000.0 * flown / 2000.0)
     photos = plan.photos
     assert len(photos) > 40
     for w in photos:
@@ -46,7 +66,7 @@ def test_photos_see_their_side_from_the_standoff(surface: TurbineSurface, plan) 
         hit = surface.cast_rays(w.position[None], view[None])
         assert int(hit.part[0]) == w.part
         # the stand-off, from the widest section within half a step (legs stay clear)
-        assert 8.0 - 0.05 < hit.distance[0] < 8.6
+        assert flown - 0.05 < hit.distance[0] < flown + 0.6
         if w.part < TOWER:
             assert int(surface.blade_side(w.part, -view[None])[0]) == w.side
         else:
@@ -67,7 +87,10 @@ def test_the_path_keeps_the_standoff_from_the_rotor(surface: TurbineSurface, pla
 def test_the_photos_cover_every_blade_side(surface: TurbineSurface, plan) -> None:
     cov = flight_coverage(surface, CAM, poses(plan.photos))
     for g in cov.grids[:3]:
-        assert g.covered(4.4).min() > 0.9, g.covered(4.4)  # 4 mm/px at the stand-off
+        # at the resolution of the distance flown; the root, within the stand-off of the
+        # hub and the other blades, is left out
+        res = 1.1 * plan.gsd_mm
+        assert g.covered(res).min() > 0.88, g.covered(res)
 
 
 def test_gimbal_limit(surface: TurbineSurface) -> None:
@@ -79,7 +102,7 @@ def test_gimbal_limit(surface: TurbineSurface) -> None:
 
 
 @pytest.mark.parametrize("options, option, words", [
-    (PlanOptions(8.0, 3.0), "max_gsd_mm", "4.00 mm/px at a stand-off of 8 m"),
+    (PlanOptions(8.0, 3.0), "max_gsd_mm", r"4\.1\d mm/px at a stand-off of 8 m \(flown at 8\.\d\d m\)"),
     (PlanOptions(35.0), "standoff", "meets the rotor"),
     (PlanOptions(0.0), "standoff", "positive"),
     (PlanOptions(8.0, overlap=0.95), "overlap", "overlap"),
@@ -88,4 +111,61 @@ def test_plans_refused(surface: TurbineSurface, options: PlanOptions, option: st
                        words: str) -> None:
     with pytest.raises(PlanError, match=words) as info:
         plan_path(surface, CAM, options)
+    assert info.value.option == option
+
+
+def test_the_written_path_keeps_its_promises(surface: TurbineSurface, plan) -> None:
+    """The check's figures, from the independent distances: every waypoint and leg."""
+    check = check_plan(plan, surface, PlanOptions(8.0, 4.2))
+    assert check.least(ROTOR)[0] >= 8.0 and check.least(STRUCTURE)[0] >= 2.0
+    assert plan.min_rotor_clearance == check.least(ROTOR)[0] >= 8.0
+    assert len(check.leg_distance) == len(plan.waypoints) - 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sane_standoffs_always_give_a_checked_path(seed: int) -> None:
+    """Property: on turbines of several types, rotor positions, headings and shapes, any
+    stand-off from the documented minimum up gives a path whose check passes (plan_path
+    raises otherwise) and the coverage of every blade side is most of it."""
+    rng = np.random.default_rng(100 + seed)
+    name = ("nrel5mw", "v80", "swt93", "random")[seed]
+    geometry = REALISTIC_GEOMETRY if seed % 2 else TurbineGeometry()
+    surface = TurbineSurface(preset_turbine(name, rng), geometry)
+    cam = PinholeCamera(640, 480, 550.0, 550.0, 319.5, 239.5)
+    for d in (MIN_STANDOFF, float(rng.uniform(MIN_STANDOFF, 12.0)), 15.0):
+        up = float(rng.choice([30.0, 90.0]))
+        p = plan_path(surface, cam, PlanOptions(d, max_gimbal_up_deg=up))
+        assert p.min_rotor_clearance >= d
+        assert p.min_tower_clearance >= tower_clearance(PlanOptions(d))
+        assert max(math.degrees(w.pitch) for w in p.waypoints) <= up + 1e-9
+        if up == 90.0:  # (a gimbal limited cannot see a horizontal blade's lower edge)
+            assert all(p.stations[(part, k)] > 0 for part in range(3) for k in range(4))
+
+
+@pytest.mark.parametrize("change, option, words", [
+    ("through_blade", "standoff", r"comes within 0\.00 m of the blade A at its leg from"),
+    ("gimbal", "max_gimbal_up_deg", r"gimbal pitched 95\.00 deg, beyond its range"),
+    ("low", "min_altitude", r"below the lowest altitude 2 m"),
+    ("near_tower", "tower_clearance", r"within 0\.\d\d m of the tower at (its leg from )?"
+     r"waypoint \d+.*less than the tower clearance of 2 m"),
+])
+def test_the_check_catches_a_broken_path(surface: TurbineSurface, plan, change: str,
+                                         option: str, words: str) -> None:
+    broken = copy.deepcopy(plan)
+    w = broken.waypoints
+    bl = surface.blades[0]
+    if change == "through_blade":  # a transit point on the far side of blade A
+        mid = bl.root + 0.5 * bl.length * bl.axis
+        w.insert(1, Waypoint(mid + 10.0 * bl.normal, 0.0, 0.0))
+        w.insert(1, Waypoint(mid - 10.0 * bl.normal, 0.0, 0.0))
+    elif change == "gimbal":
+        w[len(w) // 2].pitch = math.radians(95.0)
+    elif change == "low":
+        w[3].position = w[3].position * np.array([1.0, 1.0, 0.0]) + np.array([0, 0, 1.0])
+    else:
+        w.append(Waypoint(surface.base + np.array([surface.solid.r0 + 1.0, 0.0, 10.0]), 0.0,
+                          0.0))
+    options = PlanOptions(8.0, 4.2)
+    with pytest.raises(PlanError, match=words) as info:
+        check_plan(broken, surface, options)
     assert info.value.option == option

@@ -16,12 +16,16 @@ seen); a station no turn clears is left out and counted. A stand-off at which mo
 half the stations of a blade side are blocked by the rotor "meets the rotor" (an error).
 
 **Clearance.** The camera keeps ``standoff`` from every blade and the spinner along the
-whole path (checked every quarter metre), and ``tower_clearance`` (a quarter of the
-stand-off unless given) from the tower and the nacelle (which the suction sides' stations
-need to come near), and stays above ``min_altitude``. Consecutive waypoints are joined
-straight if that leg is clear, else through transit planes parallel to the rotor: one
-upwind of the spinner, one downwind of the nacelle, crossing between them through the
-gap between blades that points highest.
+whole path, and ``tower_clearance`` (a quarter of the stand-off, at least
+:data:`MIN_TOWER_CLEARANCE`, unless given) from the tower and the nacelle (which the
+suction sides' stations need to come near), and stays above ``min_altitude``; the
+planner's own distances (closed-form bounds per shape, checked every quarter metre) keep
+:func:`check_margin` more, and the finished path is checked by :func:`check_plan` with
+the independent distances of :mod:`turbinefit.inspection.clearance` (a plan failing it
+is refused). Consecutive waypoints are joined straight if that leg is clear, else through
+transit planes parallel to the rotor: one upwind of the spinner, one downwind of the
+nacelle, crossing between them through the gap between blades that points highest; a
+station no clear route reaches is left out and counted.
 
 **Order.** Upwind first (for each blade A, B, C: leading edge, pressure side, trailing
 edge), then downwind (each blade's suction side), then the tower's faces (back, left,
@@ -33,12 +37,22 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.inspection.surface import BLADE_SIDES, TOWER, FloatArray, TurbineSurface
+from turbinefit.inspection.clearance import (
+    LEG_STEP,
+    ROTOR,
+    STRUCTURE,
+    PathClearance,
+    SolidSamples,
+    path_clearance,
+    solid_samples,
+)
+from turbinefit.inspection.surface import BLADE_SIDES, PARTS, TOWER, FloatArray, TurbineSurface
 
 #: Turns of the view about the part's axis tried at a station, in order [deg].
 TURNS_DEG = (0.0, 15.0, -15.0, 30.0, -30.0, 40.0, -40.0)
@@ -47,6 +61,20 @@ UPWIND_SIDES = (0, 1, 2)
 DOWNWIND_SIDES = (3,)
 #: Tower faces in the order they are flown (indices into TOWER_FACES).
 TOWER_ORDER = (2, 3, 0, 1)
+#: How fast the blades' sections grow along the span at most (metres of half chord per
+#: metre of span, :func:`~turbinefit.turbine.solid.blade_profile`: 0.14 at the root's
+#: ramp), for the planner's distances from a blade.
+SECTION_SLOPE = 0.15
+#: The least stand-off a plan should be asked for [m] (``plan --standoff``; see
+#: ``docs/inspection.md``): a drone's radius with its propellers (0.4 m, a DJI Matrice
+#: 30), its hovering error without RTK (1.5 m horizontally, DJI's figure) and the model's
+#: error at the blades (1.1 m: the fitted blades' points to 0.5 m, and the flat section
+#: against a real blade's, twisted 14 deg at the root: its edge 0.01 blade lengths off).
+MIN_STANDOFF = 3.0
+#: The least tower clearance [m] (``plan --tower-clearance``, and the default's floor):
+#: the drone's radius and hovering error; the tower and the nacelle are modelled better
+#: than the blades.
+MIN_TOWER_CLEARANCE = 2.0
 
 
 class PlanError(ValueError):
@@ -116,8 +144,10 @@ class Plan:
         gsd_mm: the resolution at the stand-off [mm/px].
         skipped: per (part, side) the stations no view could clear.
         stations: per (part, side) the stations planned (photos).
-        min_rotor_clearance: least distance of the path from the rotor [m].
-        min_tower_clearance: least distance of the path from the tower and nacelle [m].
+        min_rotor_clearance: least distance of the path (waypoints and legs) from the
+            blades and the spinner [m], from :func:`check_plan` (a lower bound).
+        min_tower_clearance: the same from the tower and the nacelle [m].
+        check_s: seconds :func:`check_plan` took.
     """
 
     waypoints: list[Waypoint]
@@ -126,6 +156,7 @@ class Plan:
     stations: dict[tuple[int, int], int] = field(default_factory=dict)
     min_rotor_clearance: float = math.inf
     min_tower_clearance: float = math.inf
+    check_s: float = 0.0
 
     @property
     def length_m(self) -> float:
@@ -150,16 +181,26 @@ class _Clearance:
         self.s = surface
 
     def blade(self, p: FloatArray, i: int) -> FloatArray:
+        """Distance from blade ``i``: from the section's support along the direction
+        across the axis, the section the widest within ``SECTION_SLOPE`` times the
+        distance along the span (the nearest point of a section that grows along the
+        span lies off the point's own span)."""
         s, bl = self.s, self.s.blades[i]
         w = p - bl.root
-        t = np.clip(w @ bl.axis, 0.0, bl.length)
-        perp = w - t[:, None] * bl.axis
-        A, B = s.blade_section(t)
+        along = w @ bl.axis
+        t = np.clip(along, 0.0, bl.length)
+        perp = w - along[:, None] * bl.axis  # across the axis (beyond the tip too)
         r = np.linalg.norm(perp, axis=1)
-        cth = (perp @ bl.chord) / np.maximum(r, 1e-12)
-        sth = (perp @ bl.normal) / np.maximum(r, 1e-12)
+        near = np.clip(t[:, None] + SECTION_SLOPE * r[:, None] * np.linspace(-1.0, 1.0, 5),
+                       0.0, bl.length)
+        A, B = (v.max(axis=1) for v in s.blade_section(near))
+        tw = s.twist(t)
+        chord = np.cos(tw)[:, None] * bl.chord + np.sin(tw)[:, None] * bl.normal
+        normal = np.cos(tw)[:, None] * bl.normal - np.sin(tw)[:, None] * bl.chord
+        cth = np.einsum("ij,ij->i", perp, chord) / np.maximum(r, 1e-12)
+        sth = np.einsum("ij,ij->i", perp, normal) / np.maximum(r, 1e-12)
         ext = np.sqrt((A * cth) ** 2 + (B * sth) ** 2)
-        axial = w @ bl.axis - t
+        axial = along - t
         return np.hypot(np.maximum(r - ext, 0.0), axial) - np.maximum(ext - r, 0.0)
 
     def rotor(self, p: FloatArray, skip: int = -1) -> FloatArray:
@@ -173,9 +214,10 @@ class _Clearance:
 
     def tower(self, p: FloatArray) -> FloatArray:
         s = self.s
-        z = np.clip(p[:, 2] - s.base[2], 0.0, s.h)
+        h = float(s.solid.tower_top_z - s.base[2])  # the tower reaches into the nacelle
+        z = np.clip(p[:, 2] - s.base[2], 0.0, h)
         r = np.hypot(p[:, 0] - s.base[0], p[:, 1] - s.base[1]) - s.tower_radius(z)
-        above = np.maximum(p[:, 2] - s.base[2] - s.h, 0.0)
+        above = np.maximum(p[:, 2] - s.base[2] - h, 0.0)
         tower = np.hypot(np.maximum(r, 0.0), above) - np.maximum(-r, 0.0) * (above == 0)
         E = np.stack([s.shaft, s.side, s.up])
         q = np.abs((p - s.nacelle_centre) @ E.T) - s.nacelle_half
@@ -183,25 +225,36 @@ class _Clearance:
         return np.minimum(tower, box)
 
 
-def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptions) -> Plan:
-    """Waypoints covering each blade's sides and the tower (see the module docstring).
+def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptions,
+              samples: SolidSamples | None = None) -> Plan:
+    """Waypoints covering each blade's sides and the tower (see the module docstring),
+    checked by :func:`check_plan` before they are returned. ``samples``: the surface's
+    :func:`~turbinefit.inspection.clearance.solid_samples` to reuse (made if not given).
 
     Raises:
-        PlanError: the camera cannot reach ``options.max_gsd_mm`` at the stand-off, or the
-            stand-off meets the rotor (no clear view of a blade side at it).
+        PlanError: the camera cannot reach ``options.max_gsd_mm`` at the stand-off, the
+            stand-off meets the rotor (no clear view of a blade side at it), or the path
+            fails its check.
     """
     opt = options
     d = float(opt.standoff)
     if not (d > 0 and math.isfinite(d)):
         raise PlanError(f"the stand-off must be a positive number of metres, got {d:g}",
                         "standoff")
+    if not 0.0 <= opt.max_gimbal_up_deg <= 90.0:  # also nan
+        raise PlanError(f"the gimbal's largest upward pitch must be between 0 and 90 deg, got "
+                        f"{opt.max_gimbal_up_deg:g}", "max_gimbal_up_deg")
+    samples = samples if samples is not None else solid_samples(surface)
+    margin = check_margin(samples)
+    dp = d + margin  # what the planner keeps, so that the check can vouch for d
     f = math.sqrt(camera.fx * camera.fy)
-    gsd = 1000.0 * d / f
+    gsd = 1000.0 * dp / f
     if opt.max_gsd_mm is not None and gsd > opt.max_gsd_mm * (1 + 1e-9):
         raise PlanError(
             f"the camera (focal length {f:.0f} px) reaches {gsd:.2f} mm/px at a stand-off of "
-            f"{d:g} m, coarser than {opt.max_gsd_mm:g} mm/px: come within "
-            f"{opt.max_gsd_mm * f / 1000.0:.2f} m or use a longer lens", "max_gsd_mm")
+            f"{d:g} m (flown at {dp:.2f} m), coarser than {opt.max_gsd_mm:g} mm/px: come "
+            f"within {opt.max_gsd_mm * f / 1000.0 - margin:.2f} m or use a longer lens",
+            "max_gsd_mm")
     if not 0.0 <= opt.overlap < 0.9:
         raise PlanError(f"overlap must be in [0, 0.9), got {opt.overlap:g}", "overlap")
     s = surface
@@ -209,12 +262,13 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         raise PlanError(f"a stand-off of {d:g} m meets the rotor: it is not shorter than the "
                         f"blades ({s.b:.1f} m)", "standoff")
     clear = _Clearance(s)
-    t_clear = d / 4.0 if opt.tower_clearance is None else float(opt.tower_clearance)
+    t_clear = tower_clearance(opt)
     if not 0.0 < t_clear <= d:
         raise PlanError(f"the tower clearance must be more than 0 and at most the stand-off "
                         f"({d:g} m), got {t_clear:g}", "tower_clearance")
+    tp = t_clear + margin
     max_up = math.radians(opt.max_gimbal_up_deg)
-    foot = min(camera.width, camera.height) * d / f  # footprint along the part [m]
+    foot = min(camera.width, camera.height) * dp / f  # footprint along the part [m]
     step = max((1.0 - opt.overlap) * foot, 0.1)
     sweeps: dict[tuple[int, int], list[Waypoint]] = {}
     plan = Plan([], gsd)
@@ -230,7 +284,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         for turn in TURNS_DEG:
             o = _rotate(normal, axis, math.radians(turn))
             ext = math.hypot(a * float(o @ cdir), b * float(o @ ndir))
-            c = centre + (d + ext) * o
+            c = centre + (dp + ext) * o
             view = -o
             if math.asin(max(-1.0, min(1.0, view[2]))) > max_up:
                 continue
@@ -238,7 +292,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
             if c[2] < opt.min_altitude:
                 continue
             rot = clear.rotor(c[None], skip=part if part < 3 else -1)[0]
-            if rot < d or clear.tower(c[None])[0] < (t_clear if part < 3 else d):
+            if rot < dp or clear.tower(c[None])[0] < (tp if part < 3 else dp):
                 continue
             hits = s.cast_rays(c[None], view[None])
             if int(hits.part[0]) != part:
@@ -250,16 +304,20 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
     for i, bl in enumerate(s.blades):
         lo = float(s.spinner_radii[1])
         spans = _stations(lo, bl.length, foot, step)
-        # the widest section within half a step: straight legs between stations stay clear
-        near = np.clip(spans[:, None] + step * np.array([-0.5, -0.25, 0.0, 0.25, 0.5]), 0.0,
-                       bl.length)
+        # the widest section within half a step (straight legs between stations stay
+        # clear) and within the reach of the planner's distances (_Clearance.blade)
+        reach = max(0.5 * step, SECTION_SLOPE * (dp + s.max_half_chord()))
+        near = np.clip(spans[:, None] + reach * np.linspace(-1.0, 1.0, 9), 0.0, bl.length)
         A, B = (v.max(axis=1) for v in s.blade_section(near))
+        tw = s.twist(spans)[:, None]
+        chords = np.cos(tw) * bl.chord + np.sin(tw) * bl.normal
+        normals = np.cos(tw) * bl.normal - np.sin(tw) * bl.chord
         for side in range(4):
             normal0 = [bl.chord, bl.normal, -bl.chord, -bl.normal][side]
             sw, blocked = [], 0
             for j, sp in enumerate(spans):
                 w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal0,
-                            (float(A[j]), float(B[j]), bl.chord, bl.normal))
+                            (float(A[j]), float(B[j]), chords[j], normals[j]))
                 if isinstance(w, Waypoint):
                     sw.append(w)
                 else:
@@ -292,7 +350,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
     order = [(i, k) for i in range(3) for k in UPWIND_SIDES]
     order += [(i, k) for i in range(3) for k in DOWNWIND_SIDES]
     order += [(TOWER, k) for k in TOWER_ORDER]
-    router = _Router(s, clear, d, t_clear, opt.min_altitude)
+    router = _Router(s, clear, dp, tp, opt.min_altitude)
     path: list[Waypoint] = []
     for key in order:
         sw = sweeps[key]
@@ -303,14 +361,91 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
             sw = sw[::-1]
         for w in sw:
             if path:
-                path += router.connect(path[-1], w)
+                legs = router.connect(path[-1], w)
+                if legs is None:  # no clear way there: the station is left out
+                    plan.stations[key] -= 1
+                    plan.skipped[key] += 1
+                    continue
+                path += legs
             path.append(w)
     plan.waypoints = path
-    pts = _densify(np.array([w.position for w in path]), 0.25)
-    if len(pts):
-        plan.min_rotor_clearance = float(clear.rotor(pts).min())
-        plan.min_tower_clearance = float(clear.tower(pts).min())
+    if not plan.photos:
+        raise PlanError(f"no station has a clear view at a stand-off of {d:g} m within the "
+                        f"gimbal's {opt.max_gimbal_up_deg:g} deg upward pitch", "max_gimbal_up_deg")
+    t0 = time.perf_counter()
+    check_plan(plan, surface, options, samples)
+    plan.check_s = time.perf_counter() - t0
     return plan
+
+
+def tower_clearance(options: PlanOptions) -> float:
+    """The least distance [m] the plan keeps from the tower and the nacelle: the option's,
+    else a quarter of the stand-off, at least :data:`MIN_TOWER_CLEARANCE` (and at most the
+    stand-off)."""
+    if options.tower_clearance is not None:
+        return float(options.tower_clearance)
+    d = float(options.standoff)
+    return min(d, max(d / 4.0, MIN_TOWER_CLEARANCE))
+
+
+def check_margin(samples: SolidSamples) -> float:
+    """How much further [m] than promised the planner keeps, so that the check, whose
+    distances along the legs are lower bounds at most ``samples.tolerance + LEG_STEP / 2``
+    below the truth, can vouch for what it promises."""
+    return samples.tolerance + 0.5 * LEG_STEP + 0.02
+
+
+def check_plan(plan: Plan, surface: TurbineSurface, options: PlanOptions,
+               samples: SolidSamples | None = None) -> PathClearance:
+    """Check ``plan`` against ``options`` independently of the planner's own clearance
+    arithmetic (:func:`~turbinefit.inspection.clearance.path_clearance`: every waypoint and
+    every straight leg between them): the stand-off from the blades and the spinner, the
+    tower clearance from the tower and the nacelle, the altitude, the gimbal's pitch, all
+    finite. Sets ``plan.min_rotor_clearance`` and ``plan.min_tower_clearance`` (lower
+    bounds) and returns the clearances.
+
+    Raises:
+        PlanError: naming the option at fault (``standoff``, ``tower_clearance``,
+            ``max_gimbal_up_deg``, ``min_altitude``) and the numbers.
+    """
+    d, t_clear = float(options.standoff), tower_clearance(options)
+    samples = samples if samples is not None else solid_samples(surface)
+    w = plan.waypoints
+    p = np.array([x.position for x in w], dtype=np.float64).reshape(-1, 3)
+    pitch = np.array([x.pitch for x in w], dtype=np.float64)
+    yaw = np.array([x.yaw for x in w], dtype=np.float64)
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(pitch)) and np.all(np.isfinite(yaw))):
+        raise PlanError("the planned path has a waypoint that is not a finite number",
+                        "standoff")
+    up = np.degrees(pitch)
+    bad = np.flatnonzero((up > options.max_gimbal_up_deg + 1e-6) | (up < -90.0 - 1e-6))
+    if bad.size:
+        i = int(bad[0])
+        raise PlanError(f"waypoint {i} of the planned path has the gimbal pitched {up[i]:.2f} "
+                        f"deg, beyond its range (-90 to {options.max_gimbal_up_deg:g} deg)",
+                        "max_gimbal_up_deg")
+    low = np.flatnonzero(p[:, 2] < options.min_altitude - 1e-6)
+    if low.size:
+        i = int(low[0])
+        raise PlanError(f"waypoint {i} of the planned path is {p[i, 2]:.2f} m high, below "
+                        f"the lowest altitude {options.min_altitude:g} m", "min_altitude")
+    exact = np.array([d, d, d, t_clear, t_clear, d])
+    check = path_clearance(p, samples, exact_below=exact)
+    for parts, need, option, what in ((ROTOR, d, "standoff", "stand-off"),
+                                      (STRUCTURE, t_clear, "tower_clearance",
+                                       "tower clearance")):
+        least, part, i, leg = check.least(parts)
+        if parts == ROTOR:
+            plan.min_rotor_clearance = least
+        else:
+            plan.min_tower_clearance = least
+        if least < need:
+            where = f"its leg from waypoint {i} to {i + 1}" if leg else f"waypoint {i}"
+            raise PlanError(
+                f"the planned path comes within {max(least, 0.0):.2f} m of the "
+                f"{PARTS[part].replace('_', ' ')} at {where}, less than the {what} of "
+                f"{need:g} m (checked on the path before writing it)", option)
+    return check
 
 
 def _stations(lo: float, hi: float, foot: float, step: float) -> FloatArray:
@@ -372,7 +507,9 @@ class _Router:
     def _to_plane(self, p: FloatArray, off: float) -> FloatArray:
         return p + (off - self._offset(p)) * self.s.shaft
 
-    def connect(self, a: Waypoint, b: Waypoint) -> list[Waypoint]:
+    def connect(self, a: Waypoint, b: Waypoint) -> list[Waypoint] | None:
+        """Transit points from ``a`` to ``b`` (none: straight), or None if no route
+        clears."""
         pa, pb = a.position, b.position
         if self._clear(np.stack([pa, pb])):
             return []
@@ -399,9 +536,8 @@ class _Router:
             if self._clear(pts):
                 best = list(pts[1:-1])
                 break
-        if best is None:  # no clear route: the shortest through the planes (counted later)
-            best = min(routes, key=lambda r: float(np.sum(np.linalg.norm(
-                np.diff(np.stack([pa, *r, pb]), axis=0), axis=1))))
+        if best is None:
+            return None
         out = []
         for p in best:
             v = b.position - p

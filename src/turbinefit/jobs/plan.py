@@ -27,11 +27,22 @@ from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, world_T_cam_from_angles
+from turbinefit.inspection.clearance import LEG_STEP, solid_samples
 from turbinefit.inspection.coverage import side_names
-from turbinefit.inspection.plan import Plan, PlanError, PlanOptions, plan_path
+from turbinefit.inspection.plan import (
+    MIN_STANDOFF,
+    MIN_TOWER_CLEARANCE,
+    Plan,
+    PlanError,
+    PlanOptions,
+    check_margin,
+    plan_path,
+)
+from turbinefit.inspection.plan import tower_clearance as tower_clearance_of
 from turbinefit.inspection.surface import PARTS, TurbineSurface
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.georef import Georef, gimbal_from_world_T_cam
+from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.coverage import read_fit_output
@@ -40,6 +51,25 @@ from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, sum
 PLAN_OUTPUTS = OutputKind("plan", frozenset({
     "waypoints.csv", "waypoints_wgs84.csv", "waypoints.kml", "keyframes.txt", "turbine.yaml",
     "summary.json", "path.png"}))
+#: ``--standoff`` [m]: at least :data:`~turbinefit.inspection.plan.MIN_STANDOFF` (a
+#: drone's size, its hovering error, the model's error), at most 100 m: a photo of a
+#: blade from further resolves nothing a survey from the ground would not.
+MAX_STANDOFF_M = 100.0
+STANDOFF = Quantity("stand-off", "m", MIN_STANDOFF, MAX_STANDOFF_M)
+#: ``--tower-clearance`` [m]: at least the drone's radius and hovering error (the tower
+#: and nacelle are modelled better than the blades), at most the stand-off's maximum.
+TOWER_CLEARANCE = Quantity("tower clearance", "m", MIN_TOWER_CLEARANCE, MAX_STANDOFF_M)
+#: ``--gsd`` [mm/px]: finer than 100 mm/px (a photo coarser shows no damage).
+GSD = Quantity("resolution", "mm/px", 0.0, 100.0, lo_open=True)
+#: ``--overlap``: the share of the footprint neighbouring photos share.
+OVERLAP = Quantity("overlap", "", 0.0, 0.9, hi_open=True)
+#: ``--max-gimbal-up`` [deg]: from level (a gimbal that only looks down) to straight up.
+GIMBAL_UP = Quantity("largest upward gimbal pitch", "deg", 0.0, 90.0)
+#: The option of each of :class:`~turbinefit.inspection.plan.PlanOptions`'s fields.
+OPTION_NAMES = {"standoff": "--standoff", "max_gsd_mm": "--gsd", "overlap": "--overlap",
+                "max_gimbal_up_deg": "--max-gimbal-up", "tower_clearance": "--tower-clearance",
+                "min_altitude": "min_altitude"}
+
 WAYPOINT_COLUMNS = "index,x,y,z,yaw_deg,gimbal_pitch_deg,photo,part,side,span_m"
 WGS84_COLUMNS = "index,latitude,longitude,altitude,yaw,gimbal_pitch,photo,part,side,span_m"
 
@@ -142,12 +172,27 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     blade rotation) at ``standoff`` metres with ``camera`` (default: the photos' camera of
     the flight the fit came from) and write it to ``out_dir`` (see the module docstring).
 
+    The path is checked before anything is written
+    (:func:`~turbinefit.inspection.plan.check_plan`, independent of the planner's
+    arithmetic): every waypoint and leg keeps ``standoff`` from the blades and the spinner
+    and the tower clearance from the tower and the nacelle, the gimbal stays within its
+    pitch; the summary's clearances are the check's.
+
     Raises:
-        InputError: a fit folder without poses or turbine, a stand-off that meets the rotor,
-            a resolution ``max_gsd_mm`` the camera cannot reach at the stand-off, a bad
-            ``out_dir`` (checked first); nothing is written.
+        InputError: a number out of its range (``STANDOFF``, ``GSD``, ``OVERLAP``,
+            ``GIMBAL_UP``, ``TOWER_CLEARANCE``, named by its option), a fit folder without
+            poses or turbine, a stand-off that meets the rotor, a resolution ``max_gsd_mm``
+            the camera cannot reach at the stand-off, a path that fails its check, a bad
+            ``out_dir``; nothing is written.
     """
     t0 = time.perf_counter()
+    standoff = STANDOFF.check(standoff, field="--standoff")
+    if max_gsd_mm is not None:
+        max_gsd_mm = GSD.check(max_gsd_mm, field="--gsd")
+    overlap = OVERLAP.check(overlap, field="--overlap")
+    max_gimbal_up_deg = GIMBAL_UP.check(max_gimbal_up_deg, field="--max-gimbal-up")
+    if tower_clearance is not None:
+        tower_clearance = TOWER_CLEARANCE.check(tower_clearance, field="--tower-clearance")
     fit_dir, out_dir = Path(fit_dir), Path(out_dir)
     inputs = [fit_dir] + ([] if flight_dir is None else [Path(flight_dir)])
     PLAN_OUTPUTS.check(out_dir, inputs, overwrite)
@@ -157,15 +202,15 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     cam = camera or fit.camera
     assert cam is not None
     surface = TurbineSurface(fit.turbine, fit.geometry)
+    samples = solid_samples(surface)
+    check_margin_m = check_margin(samples)
     options = PlanOptions(standoff, max_gsd_mm, overlap, max_gimbal_up_deg,
                           tower_clearance=tower_clearance)
     try:
-        plan = plan_path(surface, cam, options)
+        plan = plan_path(surface, cam, options, samples)
     except PlanError as exc:
-        option = {"standoff": "--standoff", "max_gsd_mm": "--gsd",
-                  "tower_clearance": "--tower-clearance"}.get(exc.option, exc.option)
-        raise InputError(str(exc), field=option) from None
-    timings = {"plan": time.perf_counter() - t0}
+        raise InputError(str(exc), field=OPTION_NAMES.get(exc.option, exc.option)) from None
+    timings = {"plan": time.perf_counter() - t0, "check": plan.check_s}
     stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
     skipped = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.skipped.items() if n}
     summary = {
@@ -176,8 +221,13 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         "overlap": overlap, "max_gimbal_up_deg": max_gimbal_up_deg,
         "waypoints": len(plan.waypoints), "photos": len(plan.photos),
         "length_m": round(plan.length_m, 2),
-        "min_rotor_clearance_m": round(plan.min_rotor_clearance, 3),
-        "min_tower_clearance_m": round(plan.min_tower_clearance, 3),
+        "tower_clearance_m": tower_clearance_of(options),
+        "min_rotor_clearance_m": math.floor(plan.min_rotor_clearance * 1000.0) / 1000.0,
+        "min_tower_clearance_m": math.floor(plan.min_tower_clearance * 1000.0) / 1000.0,
+        "clearance_check": {
+            "what": "least distance of every waypoint and every straight leg between them "
+                    "from the solid (lower bounds), independent of the planner",
+            "margin_m": round(check_margin_m, 3), "leg_step_m": LEG_STEP},
         "stations": stations, "skipped": skipped,
         "blades": {bl.name: round(bl.clock_deg, 3) for bl in surface.blades},
         "georeferenced": fit.georef is not None, "timing_s": timings,
