@@ -87,7 +87,8 @@ HEAVY = ("onnxruntime", "torch", "matplotlib", "scipy", "PIL", "tqdm")
 def test_top_level_help_loads_no_command() -> None:
     loaded = _loaded(["--help"])
     assert not {m for m in loaded if m.startswith("turbinefit.")} - {
-        "turbinefit._lazy", "turbinefit.cli", "turbinefit.cli.common", "turbinefit.cli.signals"}
+        "turbinefit._lazy", "turbinefit.cli", "turbinefit.cli.common", "turbinefit.cli.signals",
+        "turbinefit.errors"}
     assert not [m for m in loaded if m.split(".")[0] in (*HEAVY, "numpy")]
 
 

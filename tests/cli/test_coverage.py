@@ -77,9 +77,11 @@ def test_coverage_with_flight_given_and_bad_pitch(fit_dir: Path, sim_flight_dir:
     assert main(["coverage", str(broken), "--flight", str(sim_flight_dir), "--out", str(out),
                  "--no-plots", "--quiet"]) == 0
     assert (out / "coverage.csv").is_file() and not (out / "coverage.png").exists()
-    rc, stdout, err = run(capsys, "coverage", str(broken), "--out", str(tmp_path / "c2"),
-                          "--flight", str(sim_flight_dir), "--blade-pitch", "120")
-    assert_one_line_error(rc, stdout, err, r"--blade-pitch")
+    with pytest.raises(SystemExit):  # a usage error (argparse: usage, then its line)
+        main(["coverage", str(broken), "--out", str(tmp_path / "c2"), "--flight",
+              str(sim_flight_dir), "--blade-pitch", "120"])
+    assert "--blade-pitch: blade angle 120.0 deg is out of range" in capsys.readouterr().err
+    assert not (tmp_path / "c2").exists()
     rc, stdout, err = run(capsys, "coverage", str(broken), "--out", str(broken / "inside"),
                           "--flight", str(sim_flight_dir))
     assert_one_line_error(rc, stdout, err, r"input")

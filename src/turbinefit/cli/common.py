@@ -62,6 +62,18 @@ def option(quantity: Quantity) -> Callable[[str], float]:
     return parse
 
 
+def job_option(job: str, name: str) -> Callable[[str], float]:
+    """:func:`option` of the quantity ``name`` of :mod:`turbinefit.jobs`'s module ``job``
+    (a quantity only that job has), loaded when the option is given, so that the
+    command's ``--help`` loads no job."""
+    def parse(text: str) -> float:
+        import importlib
+
+        return option(getattr(importlib.import_module(f"turbinefit.jobs.{job}"), name))(text)
+    parse.__name__ = name.lower()
+    return parse
+
+
 def option_tuple(*quantities: Quantity, what: str) -> Callable[[str], tuple[float, ...]]:
     """The argparse type of an option holding comma-separated numbers, one per quantity
     (``what`` names the form in messages: ``"LAT,LON in degrees"``)."""

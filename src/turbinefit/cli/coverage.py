@@ -21,8 +21,7 @@ Details: docs/inspection.md."""
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
-    from turbinefit.cli.common import DefaultsFormatter, option
-    from turbinefit.jobs.coverage import BLADE_ANGLE_DEG, GSD_MM, STEP
+    from turbinefit.cli.common import DefaultsFormatter, job_option
 
     p: argparse.ArgumentParser = sub.add_parser(
         "coverage", help=help, description=DESCRIPTION,
@@ -35,13 +34,14 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
                    help="the photos' camera (camera_info YAML) instead of the flight's")
     p.add_argument("--out", type=Path, required=True, metavar="OUT_DIR", help="output folder")
-    p.add_argument("--gsd", type=option(GSD_MM), default=2.0, metavar="MM",
+    p.add_argument("--gsd", type=job_option("coverage", "GSD_MM"), default=2.0, metavar="MM",
                    help="a side counts as covered at this many mm per pixel or finer")
-    p.add_argument("--step", type=option(STEP), default=0.5, metavar="M",
-                   help=f"span between samples along blades and tower [m], {STEP.range_text()}")
-    p.add_argument("--blade-pitch", type=option(BLADE_ANGLE_DEG), default=0.0, metavar="DEG",
+    p.add_argument("--step", type=job_option("coverage", "STEP"), default=0.5, metavar="M",
+                   help="span between samples along blades and tower [m]")
+    blade_angle = job_option("coverage", "BLADE_ANGLE_DEG")
+    p.add_argument("--blade-pitch", type=blade_angle, default=0.0, metavar="DEG",
                    help="blade pitch [deg] if known (0: flat in the rotor plane)")
-    p.add_argument("--blade-twist", type=option(BLADE_ANGLE_DEG), default=0.0, metavar="DEG",
+    p.add_argument("--blade-twist", type=blade_angle, default=0.0, metavar="DEG",
                    help="blade twist at the root [deg] if known (the pitch's sense)")
     p.add_argument("--damage", type=Path, default=None, metavar="BOXES_CSV",
                    help="boxes drawn on photos (filename,width,height,class,xmin,ymin,xmax,ymax): "

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -22,32 +21,19 @@ georeferenced flight, waypoints_wgs84.csv and waypoints.kml. Details:
 docs/inspection.md."""
 
 
-def _option(name: str) -> Callable[[str], float]:
-    """The type of the option checked by :mod:`turbinefit.jobs.plan`'s quantity ``name``
-    (:func:`turbinefit.cli.common.option`), loaded when the option is given: ``plan
-    --help`` loads no job."""
-    def parse(text: str) -> float:
-        from turbinefit.cli.common import option
-        from turbinefit.jobs import plan
-
-        return option(getattr(plan, name))(text)
-    parse.__name__ = name.lower()
-    return parse
-
-
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
-    from turbinefit.cli.common import DefaultsFormatter
+    from turbinefit.cli.common import DefaultsFormatter, job_option
 
     p: argparse.ArgumentParser = sub.add_parser(
         "plan", help=help, description=DESCRIPTION,
         usage="%(prog)s FIT_DIR --standoff M [--gsd MM_PER_PX] --out OUT_DIR",
         formatter_class=DefaultsFormatter)
     p.add_argument("fit_dir", metavar="FIT_DIR", type=Path, help="output folder of fit or track")
-    p.add_argument("--standoff", type=_option("STANDOFF"), required=True, metavar="M",
+    p.add_argument("--standoff", type=job_option("plan", "STANDOFF"), required=True, metavar="M",
                    help="camera to the surface photographed, and the least distance from "
                    "the blades and the spinner [m]: 3-100 (3 m: a drone's size, its hovering "
                    "error and the model's; docs/inspection.md)")
-    p.add_argument("--gsd", type=_option("GSD"), default=None, metavar="MM_PER_PX",
+    p.add_argument("--gsd", type=job_option("plan", "GSD"), default=None, metavar="MM_PER_PX",
                    help="resolution to reach [mm/px] (refused if the camera cannot at the "
                    "stand-off)")
     p.add_argument("--out", type=Path, required=True, metavar="OUT_DIR", help="output folder")
@@ -56,11 +42,11 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("--flight", type=Path, default=None, metavar="FLIGHT_DIR",
                    help="the fit's flight folder (camera, georef.yaml); default: the one "
                    "summary.json names")
-    p.add_argument("--overlap", type=_option("OVERLAP"), default=0.3, metavar="F",
+    p.add_argument("--overlap", type=job_option("plan", "OVERLAP"), default=0.3, metavar="F",
                    help="fraction of the footprint neighbouring photos share")
-    p.add_argument("--max-gimbal-up", type=_option("GIMBAL_UP"), default=90.0, metavar="DEG",
+    p.add_argument("--max-gimbal-up", type=job_option("plan", "GIMBAL_UP"), default=90.0, metavar="DEG",
                    help="the gimbal's largest upward pitch [deg], 0-90")
-    p.add_argument("--tower-clearance", type=_option("TOWER_CLEARANCE"), default=None,
+    p.add_argument("--tower-clearance", type=job_option("plan", "TOWER_CLEARANCE"), default=None,
                    metavar="M",
                    help="least distance from the tower and the nacelle [m], at least 2 and at "
                    "most the stand-off (default: a quarter of the stand-off, at least 2 m: the "
