@@ -87,7 +87,6 @@ from turbinefit.io.flight_folder import (
     KEYFRAMES_FILE,
     SIGMA_FILE,
     TURBINE_FILE,
-    check_flight_destination,
     format_position_sigmas,
     only_flight_entries,
 )

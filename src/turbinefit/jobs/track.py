@@ -262,7 +262,9 @@ def track_folder(
         maps = buffered[k] if k < len(buffered) else source.keyframe(k)
         try:
             est = tracker.update(float(folder.timestamps[k]), poses[k], maps,
-                                 odometry=None if odometry is None else odometry[k])
+                                 odometry=None if odometry is None else odometry[k],
+                                 position_sigma=None if folder.position_sigma is None
+                                 else folder.position_sigma[k])
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3
