@@ -21,8 +21,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         "flight's first photo; photos more than --max-gap apart make separate flights "
         "(OUT/flight-1, flight-2, ...). Positions: WGS84 to east-north-up metres about "
         "--origin (default: the first photo's position at ground level), written to "
-        "georef.yaml; a photo far from the others (a wrong position) is left out and "
-        "named. Attitude: the gimbal angles (yaw clockwise from north, pitch 0 level and "
+        "georef.yaml; a photo far from the others (a wrong position) is refused. "
+        "Attitude: the gimbal angles (yaw clockwise from north, pitch 0 level and "
         "-90 down, roll about the optical axis) to world_T_cam. camera.yaml: DJI's "
         "calibration (DewarpData, with distortion), else the calibrated intrinsics, else "
         "the table of DJI cameras, else the 35 mm equivalent over the sensor's full frame. "
@@ -88,8 +88,6 @@ def run(args: argparse.Namespace) -> int:
           f"to {s.out_dir} in {s.timings['total']:.2f} s: {flights}")
     for note in s.other_cameras:
         print(f"note: not imported (another camera): {note}")
-    for note in s.left_out:
-        print(f"note: {note}")
     for f in s.flights:
         o = f.origin
         if len(s.flights) > 1:
@@ -105,8 +103,6 @@ def run(args: argparse.Namespace) -> int:
         if f.rtk:
             print(f"positions: {f.rtk} (keyframes_sigma.csv: position priors)")
         print(f"images: {f.images}")
-        for note in f.left_out:
-            print(f"note: {note}")
         for names, what in ((f.flight_yaw, "no gimbal yaw; used the aircraft's flight yaw"),
                             (f.position_from_exif, "no XMP position; used the EXIF GPS block")):
             if names:

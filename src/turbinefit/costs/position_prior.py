@@ -35,7 +35,7 @@ def position_prior_residuals(world_T_cam: SE3, measured: FloatArray, sigma: Floa
     r = (world_T_cam.translation - np.asarray(measured, dtype=np.float64)) * inv
     if not with_jacobian:
         return r, None
-    J = np.zeros(r.shape + (6,))
+    J = np.zeros((*r.shape, 6))
     idx = np.arange(3)
     J[:, idx, idx] = inv
     return r, J

@@ -21,8 +21,8 @@ What each photo's metadata becomes (:mod:`turbinefit.io.dji` reads it,
   given, else the flight's first photo at ground level (its altitude minus its
   ``RelativeAltitude``), written to ``georef.yaml``. A photo farther than
   :data:`MAX_FLIGHT_RADIUS_M` from the flight's median position (or at latitude and
-  longitude 0, 0: no GPS fix) is left out and named; a flight whose photos are all there
-  is refused, and so is an ``origin`` that far from the photos.
+  longitude 0, 0: no GPS fix) is refused, naming it, and so is an ``origin`` that far
+  from the photos.
 * **Attitude**: the gimbal angles (``GimbalYawDegree`` etc.; where the gimbal yaw is
   missing the aircraft's ``FlightYawDegree``, reported in the summary) to ``world_T_cam``
   (:func:`turbinefit.io.georef.world_T_cam_from_gimbal`), written to ``keyframes.txt``.
@@ -111,8 +111,8 @@ FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
 SENSOR_ASPECT = 4.0 / 3.0
 #: Default longest pause between two photos of one flight [s] (``--max-gap``).
 DEFAULT_MAX_GAP_S = 600.0
-#: ``--max-gap``: a pause [s] (at most a year).
-MAX_GAP = Quantity("gap between flights", "s", 0.0, 3.2e7, lo_open=True)
+#: ``--max-gap``: a pause [s] (at most about 30 years).
+MAX_GAP = Quantity("gap between flights", "s", 0.0, 1e9, lo_open=True)
 #: Largest distance [m] of a photo from its flight's median position: beyond any drone's
 #: radio range (DJI's enterprise drones: 15-20 km); a photo farther away has a wrong
 #: position (a flipped sign or hemisphere, no GPS fix) and is left out.
@@ -147,7 +147,6 @@ class DjiFlightSummary:
         rtk: what ``keyframes_sigma.csv`` holds (solutions counted), or None (no RTK).
         flight_yaw: photos whose gimbal yaw was missing (the aircraft's yaw used).
         position_from_exif: photos whose position came from the EXIF GPS block.
-        left_out: photos left out, each with why.
         images: how ``images/`` was filled: ``hard links``, ``copies`` or both.
         turbine: what ``turbine.yaml`` is, or None (not written).
     """
@@ -163,7 +162,6 @@ class DjiFlightSummary:
     rtk: str | None = None
     flight_yaw: list[str] = field(default_factory=list)
     position_from_exif: list[str] = field(default_factory=list)
-    left_out: list[str] = field(default_factory=list)
     images: str = ""
     turbine: str | None = None
 
@@ -176,7 +174,6 @@ class DjiImportSummary:
         out_dir: the output folder: the flight folder, or the folder of flight folders.
         camera: camera make, model and kind; image_size: (W, H) [px].
         flights: each flight folder written.
-        left_out: photos left out of every flight (alone in time), each with why.
         other_cameras: photos of other cameras not imported (``camera`` picked one).
         timings: seconds per stage (read, write, total).
     """
@@ -185,7 +182,6 @@ class DjiImportSummary:
     camera: str
     image_size: tuple[int, int]
     flights: list[DjiFlightSummary]
-    left_out: list[str] = field(default_factory=list)
     other_cameras: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -242,7 +238,7 @@ def import_dji(
 
     photos = [read_dji_photo(p) for p in list_photos(paths)]
     chosen, others = pick_camera(photos, camera)
-    groups, alone = split_flights(sorted_by_time(chosen), max_gap_s)
+    groups = split_flights(sorted_by_time(chosen), max_gap_s)
     plans = [_plan_flight(g, origin, turbine_path, turbine_location_deg) for g in groups]
     t1 = time.perf_counter()
     several = len(plans) > 1
@@ -258,7 +254,7 @@ def import_dji(
     first = plans[0].photos[0]
     return DjiImportSummary(
         str(out), camera_label(first), (first.width, first.height), flights,
-        left_out=alone, other_cameras=others,
+        other_cameras=others,
         timings={"read": t1 - t0, "write": t2 - t1, "total": t2 - t0})
 
 
@@ -299,7 +295,7 @@ def _plan_flight(photos: list[DjiPhoto], origin: tuple[float, float, float] | No
     """The files of one flight's folder (module docstring)."""
     for p in photos:
         photo_pose(p)  # every photo has what a keyframe needs, before positions are judged
-    photos, left_out = drop_far_photos(photos)
+    check_positions(photos)
     meta = np.array([photo_pose(photo) for photo in photos])  # (N, 6)
     cam, intrinsics, crop = flight_camera(photos)
     if origin is None:
@@ -335,7 +331,7 @@ def _plan_flight(photos: list[DjiPhoto], origin: tuple[float, float, float] | No
         float(timestamps[-1]), rtk=rtk,
         flight_yaw=[p.path.name for p in photos if p.gimbal_yaw is None],
         position_from_exif=[p.path.name for p in photos if p.position_source == "exif"],
-        left_out=left_out, turbine=turbine_note)
+        turbine=turbine_note)
     return _FlightPlan(photos, texts, timestamps, summary, georef, near_xy)
 
 
@@ -407,13 +403,12 @@ def pick_camera(photos: list[DjiPhoto], camera: str | None) -> tuple[list[DjiPho
     return groups[keys[0]], others
 
 
-def split_flights(photos: list[DjiPhoto], max_gap_s: float) -> tuple[list[list[DjiPhoto]],
-                                                                       list[str]]:
-    """Photos in time order split where more than ``max_gap_s`` passes between two; with
-    several flights, a flight of one photo is left out (second value: each, with why).
+def split_flights(photos: list[DjiPhoto], max_gap_s: float) -> list[list[DjiPhoto]]:
+    """Photos in time order split where more than ``max_gap_s`` passes between two.
 
     Raises:
-        InputError: if every flight is a single photo (and there are several).
+        InputError: for a photo alone in its flight among several (a wrong clock, or a
+            stray photo), naming it and how far in time it is from the others.
     """
     groups: list[list[DjiPhoto]] = [[photos[0]]]
     for a, b in itertools.pairwise(photos):
@@ -421,18 +416,16 @@ def split_flights(photos: list[DjiPhoto], max_gap_s: float) -> tuple[list[list[D
         if gap > max_gap_s:
             groups.append([])
         groups[-1].append(b)
-    if len(groups) == 1:
-        return groups, []
-    kept = [g for g in groups if len(g) > 1]
-    alone = [g[0] for g in groups if len(g) == 1]
-    if not kept:
-        raise InputError(f"no two photos within {plain_number(max_gap_s)} s of each other: "
-                         "each is a flight of its own (a wrong clock? give --max-gap)",
-                         path=photos[0].path)
-    notes = [f"{p.path}: taken alone ({_time_apart(p, photos)} from any other photo; "
-             f"flights are split at pauses over {plain_number(max_gap_s)} s): left out"
-             for p in alone]
-    return kept, notes
+    if len(groups) > 1:
+        for g in groups:
+            if len(g) == 1:
+                p = g[0]
+                raise InputError(
+                    f"taken {_time_apart(p, photos)} from any other photo (DateTimeOriginal "
+                    f"{p.time}), alone in a flight of its own (flights are split at pauses "
+                    f"over {plain_number(max_gap_s)} s): a wrong clock? leave it out of the "
+                    "photos given, or raise --max-gap", path=p.path)
+    return groups
 
 
 def _time_apart(p: DjiPhoto, photos: list[DjiPhoto]) -> str:
@@ -444,14 +437,13 @@ def _time_apart(p: DjiPhoto, photos: list[DjiPhoto]) -> str:
     return f"{s:.1f} s"
 
 
-def drop_far_photos(photos: list[DjiPhoto]) -> tuple[list[DjiPhoto], list[str]]:
-    """The flight's photos without those farther than :data:`MAX_FLIGHT_RADIUS_M` from the
-    photos' median position or at latitude and longitude 0, 0 (no GPS fix), and a line
-    for each left out.
+def check_positions(photos: list[DjiPhoto]) -> None:
+    """Refuse a flight with a photo at latitude and longitude 0, 0 (no GPS fix) or farther
+    than :data:`MAX_FLIGHT_RADIUS_M` from the photos' median position (a flipped sign or
+    hemisphere), naming the photo and the distance.
 
     Raises:
-        InputError: when every photo is at 0, 0, or when half or more of them would be
-            left out (the positions disagree: no majority to trust).
+        InputError: naming the first such photo.
     """
     lat = np.array([p.latitude for p in photos], dtype=np.float64)
     lon = np.array([p.longitude for p in photos], dtype=np.float64)
@@ -465,19 +457,14 @@ def drop_far_photos(photos: list[DjiPhoto]) -> tuple[list[DjiPhoto], list[str]]:
                     float(np.median(alt[good])))
     dist = np.linalg.norm(centre.enu(lat, lon, alt), axis=-1)
     far = null | (dist > MAX_FLIGHT_RADIUS_M)
-    if far.sum() * 2 >= len(photos) and far.any():
-        k = int(np.flatnonzero(far)[0])
-        raise InputError(f"{int(far.sum())} of {len(photos)} photos lie more than "
-                         f"{MAX_FLIGHT_RADIUS_M / 1000:g} km from the photos' median "
-                         f"position (this one {dist[k] / 1000:.0f} km): their positions "
-                         "disagree", path=photos[k].path)
-    notes = []
-    for k in np.flatnonzero(far).tolist():
-        why = ("at latitude 0, longitude 0 (no GPS fix)" if null[k] else
-               f"{dist[k] / 1000:.0f} km from the flight's other photos (their median "
-               f"position; at most {MAX_FLIGHT_RADIUS_M / 1000:g} km)")
-        notes.append(f"{photos[k].path}: {why}: left out")
-    return [p for p, f in zip(photos, far.tolist(), strict=True) if not f], notes
+    if not far.any():
+        return
+    k = int(np.flatnonzero(far)[0])
+    why = ("at latitude 0, longitude 0: no GPS fix" if null[k] else
+           f"{dist[k] / 1000:.0f} km from the flight's other photos (their median position; "
+           f"a flight stays within {MAX_FLIGHT_RADIUS_M / 1000:g} km): a wrong position")
+    raise InputError(f"{why} ({int(far.sum())} of {len(photos)} photos so); leave it out "
+                     "of the photos given", path=photos[k].path)
 
 
 def _check_near(georef: Georef, photos: list[DjiPhoto]) -> None:
