@@ -55,18 +55,18 @@ def _blank_heatmaps(folder: Path) -> None:
 def dji(k: int | None = None, *, links: str | None = None, every: bool = False,
         **meta: object) -> Mutation:
     """Four DJI-style photos in ``flight/dji`` (an orbit about DJI_ORIGIN, 2 s apart),
-    photo ``k`` (``every``: each photo) written with other metadata: ``latitude``, ``longitude``, ``altitude``,
-    ``time``, ``pitch``, ``roll`` override its pose; the rest are options of
+    photo ``k`` (``every``: each photo) written with other metadata: ``latitude``,
+    ``longitude``, ``altitude``, ``time``, ``pitch``, ``roll`` override its pose; the rest are options of
     :func:`turbinefit.sim.dji_photos.dji_metadata`. ``links``: ``dangling``, ``loop`` or
     ``relative`` adds symbolic links."""
     def m(f: Path) -> None:
         import os
         from dataclasses import replace
 
+        from support import DJI_ORIGIN, dji_test_poses
+
         from turbinefit.io.georef import Georef
         from turbinefit.sim.dji_photos import dji_poses, write_dji_photo
-
-        from support import DJI_ORIGIN, dji_test_poses
 
         folder = f / "dji"
         folder.mkdir()
