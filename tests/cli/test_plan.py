@@ -120,3 +120,25 @@ def test_plan_refuses_a_fit_folder_without(remove: str, words: str, fit_dir: Pat
                           str(tmp_path / "plan"))
     assert_one_line_error(rc, stdout, err, words)
     assert [p.name for p in tmp_path.iterdir()] == ["fit"]
+
+
+def test_recorded_paths_work_from_any_directory(
+        sim_flight_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fit`` run on relative paths records its flight relative to the fit folder, so
+    ``plan`` and ``coverage`` find the flight's camera from another working directory (and
+    record their own inputs the same way)."""
+    data = tmp_path / "work" / "data"
+    shutil.copytree(sim_flight_dir, data / "flight")
+    monkeypatch.chdir(data)
+    assert main(["fit", "flight", "--out", "../runs/fit", "--no-plots", "--quiet"]) == 0
+    fit = tmp_path / "work" / "runs" / "fit"
+    assert json.loads((fit / "summary.json").read_text())["flight"] == "../../data/flight"
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert main(["plan", "../work/runs/fit", "--standoff", "10", "--out", "plan",
+                 "--no-plots", "--quiet"]) == 0
+    plan = json.loads((tmp_path / "elsewhere" / "plan" / "summary.json").read_text())
+    assert (plan["fit"], plan["flight"]) == ("../../work/runs/fit", "../../work/data/flight")
+    assert main(["coverage", "../work/runs/fit", "--out", "cov", "--no-plots", "--quiet"]) == 0
+    cov = json.loads((tmp_path / "elsewhere" / "cov" / "summary.json").read_text())
+    assert (tmp_path / "elsewhere" / "cov" / cov["flight"] / "camera.yaml").is_file()
