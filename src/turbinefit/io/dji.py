@@ -27,6 +27,10 @@ rewrite them):
 * ``ImageSource`` (``WideCamera``, ``ZoomCamera``, ``InfraredCamera`` ... on payloads
   with several cameras).
 
+Older firmware writes the same fields under the prefix ``DJI:`` (namespace
+``http://www.dji.com``), sometimes in a packet that is not well-formed XML; such a packet
+is read field by field (:func:`_xmp_fields`).
+
 XMP numbers are decimal strings with or without a sign (``+101.30``, ``82.400002``).
 
 EXIF: ``Make``, ``Model``, ``Orientation``, ``DateTimeOriginal`` (``YYYY:MM:DD
@@ -47,6 +51,7 @@ range. Missing fields are ``None``; the importer decides which it needs.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -247,7 +252,7 @@ def read_dji_photo(path: Path) -> DjiPhoto:
             exif = im.getexif()
             exif_ifd = exif.get_ifd(_IFD_EXIF)
             gps_ifd = exif.get_ifd(_IFD_GPS)
-            xmp = _drone_dji(im.getxmp()) if "xmp" in im.info else {}
+            xmp = _xmp_fields(im)
     except (SyntaxError, ValueError) as e:  # bad XMP (defusedxml), broken EXIF
         raise InputError(f"cannot read the photo's metadata: {e}", path=path) from e
 
@@ -313,6 +318,33 @@ def parse_dewarp(text: str, path: Path) -> DewarpData | None:
     cx, cy = (PIXEL_POSITION.parse(p, path, field=field) for p in parts[2:4])
     k = tuple(DISTORTION_COEFFICIENT.parse(p, path, field=field) for p in parts[4:])
     return DewarpData(date.strip(), fx, fy, cx, cy, k)  # type: ignore[arg-type]
+
+
+#: An XMP attribute ``prefix:Name="value"`` or simple element ``<prefix:Name>value<``.
+_XMP_ATTRIBUTE = re.compile(r'[\w.-]+:(\w+)\s*=\s*"([^"]*)"')
+_XMP_ELEMENT = re.compile(r"<[\w.-]+:(\w+)>([^<]*)<")
+
+
+def _xmp_fields(im: Any) -> dict[str, Any]:
+    """The ``drone-dji`` fields of an opened photo's XMP packet ({} without one).
+
+    Parsed as XML (:meth:`~PIL.Image.Image.getxmp`, ``defusedxml``); a packet that is not
+    well-formed XML - older DJI firmware declares its namespace twice (``xmlns:DJI`` in a
+    Zenmuse XT S photo), which XML forbids - is read field by field instead: attributes
+    ``prefix:Name="value"`` and simple elements ``<prefix:Name>value<``, the prefix
+    dropped as Pillow drops it. No XML library reads a malformed packet, hence by hand."""
+    raw = im.info.get("xmp")
+    if not raw:
+        return {}
+    try:
+        return _drone_dji(im.getxmp())
+    except (SyntaxError, ValueError):  # defusedxml's ParseError is a SyntaxError
+        text = raw.decode("utf-8", "replace") if isinstance(raw, bytes) else str(raw)
+        out: dict[str, Any] = {}
+        for pattern in (_XMP_ELEMENT, _XMP_ATTRIBUTE):
+            for name, value in pattern.findall(text):
+                out.setdefault(name, value.strip())
+        return out
 
 
 def _drone_dji(xmp: Mapping[str, Any]) -> dict[str, Any]:

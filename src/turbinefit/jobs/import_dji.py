@@ -487,7 +487,7 @@ def rtk_sigmas(photos: list[DjiPhoto]) -> tuple[np.ndarray | None, str | None]:
     to the floor of its solution (:data:`RTK_SIGMA_FLOOR`): ``RtkFlag`` 50 fixed, 32-49
     float, anything else (16 single point, 0 none, or no flag) single.
     """
-    if all(p.rtk_flag is None for p in photos):
+    if all(p.rtk_flag in (None, 0) for p in photos):
         return None, None
     out = np.empty((len(photos), 3))
     counts: dict[str, int] = {}
