@@ -247,9 +247,7 @@ def import_dji(
                            overwrite_hint=OVERWRITE_HINT) as tmp:
         for k, plan in enumerate(plans, start=1):
             sub = FLIGHT_DIR.format(k) if several else ""
-            flights.append(_write_flight(plan, tmp / sub if sub else tmp, out / sub if sub else out))
-            if sub:
-                (tmp / sub).mkdir(exist_ok=True)
+            flights.append(_write_flight(plan, tmp / sub, out / sub))
     t2 = time.perf_counter()
     first = plans[0].photos[0]
     return DjiImportSummary(
