@@ -95,7 +95,7 @@ def run(argv: list[str]) -> tuple[int, str]:
 
 
 def measure(photo: Path, tags: dict, work: Path) -> dict:
-    row: dict = {"photo": str(photo), "model": str(tags.get("Model", "")),
+    row: dict = {"photo": photo.name, "model": str(tags.get("Model", "")),
                  "width": tags.get("ImageWidth")}
     lat, lon = num(tags.get("GPSLatitude")), num(tags.get("GPSLongitude"))
     alt = num(tags.get("AbsoluteAltitude", tags.get("GPSAltitude")))
@@ -160,6 +160,7 @@ def main_(argv: list[str] | None = None) -> int:
             if str(t.get("Make", "DJI")).upper() != "DJI" and "Model" not in t:
                 continue
             row = measure(p, t, Path(tmp))
+            row["photo"] = str(p.relative_to(args.photos_dir))
             rows.append(row)
             extra = (f"position {row['position_error_m'] * 1000:.3f} mm, axis "
                      f"{row['axis_error_deg']:.2e} deg, fx {row['fx']:.1f} px"
