@@ -429,6 +429,9 @@ def _cases() -> list[Case]:
             ("rtk-flag-text", dji(0, extra_xmp={"RtkFlag": "fixed"}), (r"RtkFlag",)),
     ):
         add(f"dji-{name}", cmd(*dji_cmd), mutation, *pats)
+    add("georef-altitude-1e9", fit(), write("georef.yaml", "latitude: 51.45\nlongitude: -2.58\n"
+                                             "altitude: 1e9\nframe: enu\n"),
+        r"georef\.yaml", r"altitude", r"out of range")
     add("dji-origin-far", cmd(*dji_cmd, "--origin", "0,0,0"), dji(), r"--origin",
         r"km from the photos")
     add("dji-origin-altitude-1e9", cmd(*dji_cmd, "--origin", "51.45,-2.58,1e9"), dji(),
