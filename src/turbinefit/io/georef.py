@@ -202,8 +202,9 @@ def read_georef_yaml(path: StrPath) -> Georef:
                          field="frame")
     from turbinefit.io.quantities import check_latlonalt
 
-    lat, lon, alt = check_latlonalt(*(parse_number(data[k], path, k) for k in known[:3]),
-                                    path=path)
+    lat, lon, alt = check_latlonalt(parse_number(data["latitude"], path, "latitude"),
+                                    parse_number(data["longitude"], path, "longitude"),
+                                    parse_number(data["altitude"], path, "altitude"), path)
     time_origin = data.get("time_origin")
     if time_origin is not None and not isinstance(time_origin, str):
         time_origin = str(time_origin)
