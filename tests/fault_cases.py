@@ -52,6 +52,38 @@ def _blank_heatmaps(folder: Path) -> None:
         np.save(p, np.zeros_like(np.load(p)))
 
 
+def dji(k: int | None = None, *, links: str | None = None, every: bool = False,
+        **meta: object) -> Mutation:
+    """Four DJI-style photos in ``flight/dji`` (an orbit about DJI_ORIGIN, 2 s apart),
+    photo ``k`` (``every``: each photo) written with other metadata: ``latitude``,
+    ``longitude``, ``altitude``, ``time``, ``pitch``, ``roll`` override its pose; the rest are options of
+    :func:`turbinefit.sim.dji_photos.dji_metadata`. ``links``: ``dangling``, ``loop`` or
+    ``relative`` adds symbolic links."""
+    def m(f: Path) -> None:
+        import os
+        from dataclasses import replace
+
+        from support import DJI_ORIGIN, dji_test_poses
+
+        from turbinefit.io.georef import Georef
+        from turbinefit.sim.dji_photos import dji_poses, write_dji_photo
+
+        folder = f / "dji"
+        folder.mkdir()
+        poses = dji_poses(Georef(*DJI_ORIGIN), dji_test_poses(4), [0.0, 2.0, 4.0, 6.0])
+        for i, pose in enumerate(poses):
+            kw = dict(meta) if i == k or every else {}
+            over = {key: kw.pop(key) for key in ("latitude", "longitude", "altitude", "time",
+                                                 "pitch", "roll") if key in kw}
+            write_dji_photo(folder / f"DJI_{i:04d}.JPG", np.full((48, 64, 3), 100, np.uint8),
+                            replace(pose, **over), **kw)  # type: ignore[arg-type]
+        if links == "dangling":
+            os.symlink("gone.JPG", folder / "DJI_0009.JPG")
+        elif links == "loop":
+            os.symlink("DJI_0009.JPG", folder / "DJI_0009.JPG")
+    return m
+
+
 def _cases() -> list[Case]:
     c: list[Case] = []
 
@@ -371,14 +403,55 @@ def _cases() -> list[Case]:
     add("report-missing", cmd("report", "{w}/flight/nothing"), None, r"nothing")
 
     # -- import: DJI photos, ROS bags
-    dji = ("import", "dji", "{w}/flight/dji", "--out", "{w}/out")
+    dji_cmd = ("import", "dji", "{w}/flight/dji", "--out", "{w}/out")
     add("dji-not-jpeg", cmd("import", "dji", "{w}/flight/images/2.000000.png", "--out",
                             "{w}/out"), None, PHOTO, r"JPEG")
     add("dji-fifo", cmd("import", "dji", "{w}/flight/a.jpg", "--out", "{w}/out"),
         fifo("a.jpg"), r"a\.jpg", r"named pipe", hang=True)
-    add("dji-fake-jpeg", cmd(*dji), write("dji/a.jpg", "not a photo"), r"dji/a\.jpg",
+    add("dji-fake-jpeg", cmd(*dji_cmd), write("dji/a.jpg", "not a photo"), r"dji/a\.jpg",
         r"not a JPEG")
-    add("dji-no-photos", cmd(*dji), lambda f: (f / "dji").mkdir(), r"dji", r"no")
+    add("dji-no-photos", cmd(*dji_cmd), lambda f: (f / "dji").mkdir(), r"dji", r"no")
+    # issue 49: impossible positions, angles, cameras and times in photo metadata
+    from datetime import timedelta
+
+    from turbinefit.sim.dji_photos import DEFAULT_START
+
+    for name, mutation, pats in (
+            ("zero-position", dji(2, latitude=0.0, longitude=0.0),
+             (r"DJI_0002\.JPG", r"latitude 0, longitude 0")),
+            ("latitude-sign", dji(1, latitude=-51.4545), (r"DJI_0001\.JPG", r"993\d km")),
+            ("east-west", dji(3, longitude=2.5879), (r"DJI_0003\.JPG", r"3[56]\d km")),
+            ("altitude-1e7", dji(0, altitude=1e7), (r"DJI_0000\.JPG", r"AbsoluteAltitude",
+                                                    r"out of range")),
+            ("all-at-zero", dji(every=True, latitude=0.0, longitude=0.0),
+             (r"every photo of the flight \(4\) is at latitude 0",)),
+            ("pitch-200", dji(1, pitch=200.0), (r"GimbalPitchDegree", r"gimbal pitch 200")),
+            ("roll-1e6", dji(2, roll=1e6), (r"GimbalRollDegree", r"1000000")),
+            ("clock-5-years", dji(0, time=DEFAULT_START - timedelta(days=5 * 365)),
+             (r"DJI_0000\.JPG", r"1825\.\d days", r"wrong clock")),
+            ("focal35-60000", dji(0, focal_35mm=60000.0), (r"FocalLengthIn35mmFilm",)),
+            ("principal-point-1e6", dji(0, extra_xmp={"CalibratedFocalLength": "50",
+                                                      "CalibratedOpticalCenterX": "1e6"}),
+             (r"principal point cx = 1000000",)),
+            ("relative-altitude-1e9", dji(0, extra_xmp={"RelativeAltitude": "-1e9"}),
+             (r"RelativeAltitude", r"out of range")),
+            ("dangling-link", dji(links="dangling"), (r"DJI_0009\.JPG", r"does not exist")),
+            ("link-loop", dji(links="loop"), (r"DJI_0009\.JPG", r"symbolic link loop")),
+            ("dewarp-short", dji(0, extra_xmp={"DewarpData": "2020-01-01;1,2,3"}),
+             (r"DewarpData", r"expected")),
+            ("rtk-flag-text", dji(0, extra_xmp={"RtkFlag": "fixed"}), (r"RtkFlag",)),
+    ):
+        add(f"dji-{name}", cmd(*dji_cmd), mutation, *pats)
+    add("georef-altitude-1e9", fit(), write("georef.yaml", "latitude: 51.45\nlongitude: -2.58\n"
+                                             "altitude: 1e9\nframe: enu\n"),
+        r"georef\.yaml", r"altitude", r"out of range")
+    add("dji-origin-far", cmd(*dji_cmd, "--origin", "0,0,0"), dji(), r"--origin",
+        r"km from the photos")
+    add("dji-origin-altitude-1e9", cmd(*dji_cmd, "--origin", "51.45,-2.58,1e9"), dji(),
+        r"--origin", r"altitude", usage=True)
+    add("dji-max-gap-zero", cmd(*dji_cmd, "--max-gap", "0"), dji(), r"--max-gap", usage=True)
+    add("dji-camera-unknown", cmd(*dji_cmd, "--camera", "zoom"), dji(), r"--camera",
+        r"no photos of camera 'zoom'")
     bag = ("import", "rosbag", "{w}/flight/b.bag", "--out", "{w}/out", "--image-topic", "/i",
            "--odometry-topic", "/o")
     add("rosbag-fifo", cmd(*bag), fifo("b.bag"), r"b\.bag", r"named pipe", hang=True)

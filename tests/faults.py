@@ -93,7 +93,7 @@ class Outcome:
         lines = self.stderr.splitlines()
         if case.usage and lines and lines[0].startswith("usage: turbinefit"):
             lines = lines[-1:]  # argparse: usage lines, then "turbinefit CMD: error: ..."
-            if not re.match(r"turbinefit \w+: error: ", lines[0]):
+            if not re.match(r"turbinefit \w+( \w+)?: error: ", lines[0]):
                 out.append(f"not a usage error: {lines!r}")
         elif not self.hung and (len(lines) != 1 or not lines[0].startswith("turbinefit: error: ")):
             out.append(f"stderr is not one error line: {lines!r}")

@@ -367,5 +367,5 @@ def write_dji_photos(folder: Path, world_T_cam: SE3, timestamps: np.ndarray,
     for k, pose in enumerate(dji_poses(Georef(*DJI_ORIGIN), world_T_cam, timestamps)):
         pixels = (images[k] if images is not None
                   else np.full((size[1], size[0], 3), 90 + 10 * k, np.uint8))
-        out.append(write_dji_photo(folder / names.format(k), pixels, pose, **metadata))
+        out.append(write_dji_photo(folder / names.format(k), pixels, pose, **metadata))  # type: ignore[arg-type]
     return out

@@ -27,6 +27,9 @@ class Flight:
             measurements; None = use the relative poses of ``world_T_cam``.
         gt_world_T_cam: (N,) ground-truth poses, if known.
         gt_turbine: ground-truth turbine, if known.
+        position_sigma: (N, 3) standard deviations [m] of the positions of
+            ``world_T_cam`` along the world axes (RTK), or None: then no absolute position
+            prior (:mod:`turbinefit.costs.position_prior`).
     """
 
     camera: PinholeCamera
@@ -37,6 +40,7 @@ class Flight:
     odometry: SE3 | None = None
     gt_world_T_cam: SE3 | None = None
     gt_turbine: TurbineParams | None = None
+    position_sigma: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.timestamps)
@@ -48,6 +52,11 @@ class Flight:
             raise ValueError(
                 f"heat-maps are {self.heatmaps.width}x{self.heatmaps.height} but the camera is "
                 f"{self.camera.width}x{self.camera.height}")
+        s = self.position_sigma
+        if s is not None and (s.shape != (n, 3) or not np.all(np.isfinite(s))
+                              or not np.all(s > 0)):
+            raise ValueError(f"position_sigma must be ({n}, 3) positive and finite, got shape "
+                             f"{s.shape}")
         for name in ("odometry", "gt_world_T_cam"):
             v = getattr(self, name)
             if v is not None and v.batch_shape != (n,):

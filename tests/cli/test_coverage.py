@@ -174,4 +174,5 @@ def test_coverage_of_a_flight_folder_uses_its_own_poses(sim_flight_dir: Path, tm
     assert "clockwise from 12 o'clock" in stdout
     rows = list(csv.DictReader((out / "coverage.csv").open()))
     assert len({r["keyframe"] for r in rows}) >= 6
-    assert json.loads((out / "summary.json").read_text())["flight"] == str(sim_flight_dir)
+    flight = json.loads((out / "summary.json").read_text())["flight"]  # relative to out
+    assert (out / flight).resolve() == sim_flight_dir.resolve()

@@ -4,6 +4,7 @@ with WGS84 outputs consistent with the photos' convention."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -78,6 +79,21 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
         patterns = ("--turbine: ", "cannot determine turbine")
     rc, out, err = run(capsys, "import", "dji", *args, "--out", str(tmp_path / "flight"))
     assert_one_line_error(rc, out, err, *patterns)
+    assert not (tmp_path / "flight").exists()
+
+
+@pytest.mark.parametrize(("option", "value", "pattern"), [
+    ("--origin", "95,0,10", r"--origin: latitude 95\.0 deg is out of range"),
+    ("--max-gap", "-5", r"--max-gap: gap between flights -5\.0 s is out of range"),
+])
+def test_bad_options_are_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                      option: str, value: str, pattern: str) -> None:
+    write_dji_photos(tmp_path / "photos", dji_test_poses(2), np.array([0.0, 1.0]))
+    with pytest.raises(SystemExit) as exc:
+        run(capsys, "import", "dji", str(tmp_path / "photos"), "--out",
+            str(tmp_path / "flight"), option, value)
+    assert exc.value.code == 2
+    assert re.search(pattern, capsys.readouterr().err.splitlines()[-1])
     assert not (tmp_path / "flight").exists()
 
 

@@ -195,3 +195,25 @@ def test_plan_at_the_least_standoff_keeps_it(standoff: float, fit_dir: Path, tmp
     # the file's millimetres aside
     assert check.least(ROTOR)[0] >= standoff - 0.01
     assert check.least(STRUCTURE)[0] >= 2.0 - 0.01
+
+
+def test_recorded_paths_work_from_any_directory(
+        sim_flight_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fit`` run on relative paths records its flight relative to the fit folder, so
+    ``plan`` and ``coverage`` find the flight's camera from another working directory (and
+    record their own inputs the same way)."""
+    data = tmp_path / "work" / "data"
+    shutil.copytree(sim_flight_dir, data / "flight")
+    monkeypatch.chdir(data)
+    assert main(["fit", "flight", "--out", "../runs/fit", "--no-plots", "--quiet"]) == 0
+    fit = tmp_path / "work" / "runs" / "fit"
+    assert json.loads((fit / "summary.json").read_text())["flight"] == "../../data/flight"
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert main(["plan", "../work/runs/fit", "--standoff", "10", "--out", "plan",
+                 "--no-plots", "--quiet"]) == 0
+    plan = json.loads((tmp_path / "elsewhere" / "plan" / "summary.json").read_text())
+    assert (plan["fit"], plan["flight"]) == ("../../work/runs/fit", "../../work/data/flight")
+    assert main(["coverage", "../work/runs/fit", "--out", "cov", "--no-plots", "--quiet"]) == 0
+    cov = json.loads((tmp_path / "elsewhere" / "cov" / "summary.json").read_text())
+    assert (tmp_path / "elsewhere" / "cov" / cov["flight"] / "camera.yaml").is_file()

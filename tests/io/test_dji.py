@@ -128,3 +128,23 @@ def test_reading_does_not_decode_the_pixels(tmp_path: Path, monkeypatch: pytest.
 
     monkeypatch.setattr(ImageFile.ImageFile, "load", no_decode)
     assert read_dji_photo(p).gimbal_roll == 1.5
+
+
+def test_malformed_xmp_of_older_firmware(tmp_path: Path) -> None:
+    """A Zenmuse XT S photo's packet: the DJI: prefix declared twice (not well-formed XML,
+    which XML parsers refuse), fields unsigned or signed: read field by field."""
+    exif, _ = dji_metadata(POSE)
+    xmp = (b'<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF '
+           b'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
+           b'<rdf:Description rdf:about="DJI Meta Data"\nxmlns:DJI="http://www.dji.com"\n'
+           b'xmlns:DJI="http://www.dji.com"\nDJI:AbsoluteAltitude="-29.44"\n'
+           b'DJI:RelativeAltitude="37.70"\nDJI:GimbalRollDegree="+0.00"\n'
+           b'DJI:GimbalYawDegree="91.30"\nDJI:GimbalPitchDegree="+19.90"\nDJI:RtkFlag="0">'
+           b'<DJI:BandName><rdf:Seq><rdf:li>LWIR</rdf:li></rdf:Seq></DJI:BandName>'
+           b'</rdf:Description></rdf:RDF></x:xmpmeta>')
+    Image.fromarray(GREY).save(tmp_path / "xts.jpg", "JPEG", exif=exif, xmp=xmp)
+    photo = read_dji_photo(tmp_path / "xts.jpg")
+    assert (photo.gimbal_yaw, photo.gimbal_pitch, photo.gimbal_roll) == (91.3, 19.9, 0.0)
+    assert (photo.altitude, photo.relative_altitude, photo.rtk_flag) == (-29.44, 37.7, 0)
+    assert photo.position_source == "exif"
+    assert photo.latitude == pytest.approx(POSE.latitude, abs=1e-9)

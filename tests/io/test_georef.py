@@ -87,7 +87,8 @@ def test_georef_yaml_round_trip(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("text", "field"), [
-    ("latitude: 91\nlongitude: 0\naltitude: 0\nframe: enu\n", None),
+    ("latitude: 91\nlongitude: 0\naltitude: 0\nframe: enu\n", "latitude"),
+    ("latitude: 1\nlongitude: 0\naltitude: 1e9\nframe: enu\n", "altitude"),  # as import dji
     ("latitude: 1\nlongitude: 0\naltitude: 0\nframe: ned\n", "frame"),
     ("latitude: 1\nlongitude: 0\nframe: enu\n", "altitude"),
     ("latitude: 1\nlongitude: 0\naltitude: 0\nframe: enu\ndatum: egm96\n", "datum"),

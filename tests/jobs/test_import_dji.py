@@ -52,9 +52,9 @@ def test_import_recovers_the_poses(photos: Path, tmp_path: Path) -> None:
     assert dpos.max() < 1e-4 and np.degrees(dang.max()) < 1e-5  # what the digits allow
     assert read_georef_yaml(tmp_path / "flight" / "georef.yaml") == Georef(
         *DJI_ORIGIN, time_origin="2024-05-01T11:30:00.000000")
-    assert (s.num_photos, s.camera, s.image_size, s.flight_yaw) == (5, "DJI FC6310", (64, 48),
+    assert (s.num_photos, s.camera, s.image_size, s.flights[0].flight_yaw) == (5, "DJI FC6310", (64, 48),
                                                                      [])
-    assert s.duration_s == pytest.approx(9.75)
+    assert s.flights[0].duration_s == pytest.approx(9.75)
     assert sorted(p.name for p in (tmp_path / "flight").iterdir()) == [
         "camera.yaml", "georef.yaml", "images", "keyframes.txt"]
 
@@ -69,7 +69,7 @@ def test_default_origin_is_the_first_photo_on_the_ground(tmp_path: Path) -> None
     # the first camera is straight above the origin, at its height above the take-off point
     np.testing.assert_allclose(poses.translation[0, :2], 0.0, atol=1e-6)
     assert poses.translation[0, 2] == pytest.approx(POSES.translation[0, 2], abs=1e-3)
-    assert s.origin.altitude == pytest.approx(DJI_ORIGIN[2], abs=1e-3)
+    assert s.flights[0].origin.altitude == pytest.approx(DJI_ORIGIN[2], abs=1e-3)
     # the frame differs from the truth's by the shift of the origin only (rotation < 0.001 deg)
     shift = poses.translation[0] - POSES.translation[0]
     np.testing.assert_allclose(poses.translation - shift, POSES.translation, atol=0.01)
@@ -94,7 +94,7 @@ def test_copies_when_links_fail(photos: Path, tmp_path: Path,
 
     monkeypatch.setattr(os, "link", no_link)
     s = import_dji([photos], tmp_path / "flight", origin=DJI_ORIGIN)
-    assert s.images == "5 copies"
+    assert s.flights[0].images == "5 copies"
     dst = tmp_path / "flight" / "images" / "0.000000.jpg"
     assert dst.read_bytes() == (photos / "DJI_0000.JPG").read_bytes()
     assert not os.path.samefile(dst, photos / "DJI_0000.JPG")
@@ -105,7 +105,7 @@ def test_calibrated_intrinsics_win(tmp_path: Path) -> None:
     write_dji_photos(tmp_path / "photos", POSES, TIMES, camera=cam)
     s = import_dji([tmp_path / "photos"], tmp_path / "flight", origin=DJI_ORIGIN)
     assert read_camera_yaml(tmp_path / "flight" / "camera.yaml") == cam
-    assert "Calibrated" in s.intrinsics
+    assert "Calibrated" in s.flights[0].intrinsics
 
 
 def test_35mm_equivalent_focal_length(photos: Path, tmp_path: Path) -> None:
@@ -120,7 +120,7 @@ def test_35mm_equivalent_focal_length(photos: Path, tmp_path: Path) -> None:
 def test_flight_yaw_when_the_gimbal_yaw_is_missing(tmp_path: Path) -> None:
     write_dji_photos(tmp_path / "photos", POSES, TIMES, gimbal_yaw=False)
     s = import_dji([tmp_path / "photos"], tmp_path / "flight", origin=DJI_ORIGIN)
-    assert len(s.flight_yaw) == 5
+    assert len(s.flights[0].flight_yaw) == 5
     _, poses = read_tum(tmp_path / "flight" / "keyframes.txt")
     assert np.degrees(pose_errors(poses, POSES)[1].max()) < 1e-5  # flight yaw = gimbal yaw
 
@@ -139,7 +139,7 @@ def test_turbine_yaml_is_copied_or_placed(photos: Path, tmp_path: Path) -> None:
     x, y, _ = Georef(*DJI_ORIGIN).enu(lat, lon, DJI_ORIGIN[2])
     assert (moved.base_x, moved.base_y) == pytest.approx((x, y), abs=1e-3)
     assert abs(moved.base_x - NRE.base_x) > 50  # really moved
-    assert moved.tower_height == NRE.tower_height and "base at" in (s.turbine or "")
+    assert moved.tower_height == NRE.tower_height and "base at" in (s.flights[0].turbine or "")
 
 
 # ------------------------------------------------------------------ bad input
@@ -200,7 +200,8 @@ def test_mixed_cameras_name_two_photos(tmp_path: Path) -> None:
                      names="ZOOM_{:04d}.JPG")
     msg = _refused([tmp_path / "photos"], tmp_path / "flight",
                    tmp_path / "photos" / "ZOOM_0000.JPG")
-    assert re.search(r"DJI_0000\.JPG \(DJI FC6310, 64x48.*80x60", msg), msg
+    assert re.search(r"photos of 2 cameras: DJI FC6310 64x48 \(5 photos, first .*DJI_0000\.JPG\); "
+                     r"DJI FC6310 80x60 \(1 photos, .*--camera", msg), msg
 
 
 def test_turbine_by_position_not_in_the_photos_is_refused(photos: Path, tmp_path: Path) -> None:

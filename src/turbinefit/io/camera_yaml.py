@@ -189,6 +189,21 @@ def _check_plausible(K: NDArray[np.float64], width: int, height: int, path: StrP
                              f"to {plain_number((1 + m) * size)})", path=path, field=field)
 
 
+def check_camera(camera: PinholeCamera, path: StrPath, field: str) -> PinholeCamera:
+    """Refuse a camera ``camera.yaml`` would refuse - an image size outside the limits,
+    intrinsics no camera has, a distortion coefficient beyond +-1000 - naming ``path``
+    and ``field`` (e.g. a photo and the metadata its camera came from). The one check
+    shared by every reader that makes a camera (``import dji``, ``import rosbag``)."""
+    check_image_size(camera.width, camera.height, path, field=field, what="the image size")
+    _check_plausible(camera.K, camera.width, camera.height, path, field)
+    big = [i for i, c in enumerate(camera.distortion) if not abs(c) <= MAX_DISTORTION]
+    if big:
+        i = big[0]
+        raise InputError(f"coefficient {i} is {plain_number(camera.distortion[i])}, beyond "
+                         f"the plausible +-{MAX_DISTORTION:g}", path=path, field=field)
+    return camera
+
+
 def camera_from_mapping(data: dict[str, Any], path: StrPath) -> PinholeCamera:
     """The camera of a parsed camera-info mapping (``path`` names errors)."""
     if "image_width" in data or "image_height" in data or "cameraResolution" not in data:

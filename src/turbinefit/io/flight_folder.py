@@ -15,6 +15,8 @@ Layout (names exact)::
         simulation.yaml             settings of ``turbinefit simulate``     (optional, not read)
         georef.yaml                 WGS84 origin of an ENU world frame      (optional, see
                                     :mod:`turbinefit.io.georef`; read by fit and track)
+        keyframes_sigma.csv         position standard deviations per        (optional)
+                                    keyframe (RTK): absolute position priors
 
 * Poses: camera-to-world ``world_T_cam`` (OpenCV camera frame, world z up), metres; TUM
   files store quaternions xyzw (see :mod:`turbinefit.io.tum`).
@@ -37,6 +39,13 @@ Layout (names exact)::
   photos' size (h, w = H, W) use ``camera.yaml`` as it is. The size must be the photos'
   scaled by one factor up to rounding (h within a pixel of ``H w / W``, or w of
   ``W h / H``) and no larger than the photos.
+* Position sigmas (``keyframes_sigma.csv``, written by ``import dji`` from RTK status):
+  a header ``timestamp,sigma_x,sigma_y,sigma_z``, then one row per keyframe, the same
+  timestamps as ``keyframes.txt`` (within 1e-6 s, in order): the standard deviations [m]
+  of the keyframe's position in ``keyframes.txt`` along the world's x, y, z axes
+  (east, north, up on a georeferenced flight), each in (0, 10000]. ``keyframes.txt`` stays
+  TUM; with this file, ``fit`` and ``track`` add an absolute position prior per keyframe
+  (:mod:`turbinefit.costs.position_prior`).
 * Images: ``images/<timestamp formatted %.6f>.png`` (or ``.jpg`` / ``.jpeg``), the
   keyframe's photo at the size of ``camera.yaml`` (the photos' camera). A flight with ``images/`` but no
   ``heatmaps/`` is read with heat-maps detected from the photos: :func:`read_flight_folder`
@@ -101,6 +110,8 @@ from turbinefit.io.heatmap_files import (
     scaled_camera,
 )
 from turbinefit.io.images import IMAGE_SUFFIXES
+from turbinefit.io.quantities import TIMESTAMP as TIMESTAMP_Q
+from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import TumTrajectory, format_tum, read_tum_lines
 from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
 from turbinefit.turbine.model import TurbineParams
@@ -116,13 +127,18 @@ GT_TURBINE_FILE = "turbine_groundtruth.yaml"
 SIMULATION_FILE = "simulation.yaml"
 #: The WGS84 origin of a georeferenced flight (:mod:`turbinefit.io.georef`).
 GEOREF_FILE = "georef.yaml"
+#: Position standard deviations per keyframe (module docstring).
+SIGMA_FILE = "keyframes_sigma.csv"
+SIGMA_HEADER = "timestamp,sigma_x,sigma_y,sigma_z"
+#: A keyframe position's standard deviation [m].
+POSITION_SIGMA = Quantity("position standard deviation", "m", 0.0, 1e4, lo_open=True)
 #: Every entry a flight folder may contain (what ``write_flight(overwrite=True)`` may replace).
 FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                             HEATMAP_DIR, IMAGE_DIR, GT_POSES_FILE, GT_TURBINE_FILE,
-                            SIMULATION_FILE, GEOREF_FILE})
+                            SIMULATION_FILE, GEOREF_FILE, SIGMA_FILE})
 #: The entries :func:`write_flight` writes from the Flight itself (not as ``extra_texts``).
 _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
-                           HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE})
+                           HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE, SIGMA_FILE})
 #: Largest difference [s] between a keyframe's timestamp and its odometry / ground truth's.
 TIMESTAMP_TOLERANCE = 1e-6
 # --------------------------------------------------------------------------- flight
@@ -190,6 +206,7 @@ class FlightFolder:
         keyframes: ``keyframes.txt`` (timestamps, initial ``world_T_cam``, line numbers).
         turbine: the initial turbine (None without ``turbine.yaml``).
         odometry, gt_world_T_cam, gt_turbine: the optional files, or None.
+        position_sigma: (N, 3) ``keyframes_sigma.csv``, or None.
     """
 
     root: Path
@@ -199,6 +216,7 @@ class FlightFolder:
     odometry: SE3 | None = None
     gt_world_T_cam: SE3 | None = None
     gt_turbine: TurbineParams | None = None
+    position_sigma: NDArray[np.float64] | None = None
 
     @property
     def timestamps(self) -> NDArray[np.float64]:
@@ -253,7 +271,8 @@ class FlightFolder:
                           timestamps=self.timestamps,
                           world_T_cam=self.keyframes.poses, heatmaps=heatmaps,
                           turbine=turbine, odometry=self.odometry,
-                          gt_world_T_cam=self.gt_world_T_cam, gt_turbine=self.gt_turbine)
+                          gt_world_T_cam=self.gt_world_T_cam, gt_turbine=self.gt_turbine,
+                          position_sigma=self.position_sigma)
         except ValueError as e:  # heat-maps given by the caller
             raise InputError(str(e), path=self.root) from e
 
@@ -285,7 +304,56 @@ def read_flight_folder(folder: StrPath) -> FlightFolder:
         gt_poses = _read_matching_tum(root / GT_POSES_FILE, keyframes, kf_path)
     if _kind(root / GT_TURBINE_FILE) is not None:
         gt_turbine = read_turbine_yaml(root / GT_TURBINE_FILE)
-    return FlightFolder(root, camera, keyframes, turbine, odometry, gt_poses, gt_turbine)
+    sigma = (read_position_sigmas(root / SIGMA_FILE, keyframes, kf_path)
+             if _kind(root / SIGMA_FILE) is not None else None)
+    return FlightFolder(root, camera, keyframes, turbine, odometry, gt_poses, gt_turbine,
+                        sigma)
+
+
+def format_position_sigmas(timestamps: ArrayLike, sigmas: ArrayLike) -> str:
+    """The text of ``keyframes_sigma.csv`` (module docstring): ``sigmas`` (N, 3) [m]."""
+    s = POSITION_SIGMA.check_array(sigmas, field=SIGMA_FILE)
+    rows = [SIGMA_HEADER]
+    for t, (x, y, z) in zip(np.asarray(timestamps, np.float64).tolist(), s.tolist(),
+                            strict=True):
+        rows.append(f"{t:.6f},{x:.6g},{y:.6g},{z:.6g}")
+    return "\n".join(rows) + "\n"
+
+
+def read_position_sigmas(path: Path, keyframes: TumTrajectory,
+                         keyframes_path: Path) -> NDArray[np.float64]:
+    """(N, 3) position standard deviations of ``keyframes_sigma.csv``, one row per keyframe.
+
+    Raises:
+        InputError: naming the file and line of a malformed row, a sigma out of range, or
+            a timestamp that is not the keyframe's.
+    """
+    from turbinefit.io.atomic import read_text
+
+    lines = [(i, ln.strip()) for i, ln in enumerate(read_text(path).splitlines(), start=1)
+             if ln.strip()]
+    if not lines or lines[0][1].replace(" ", "") != SIGMA_HEADER:
+        raise InputError(f"expected the header {SIGMA_HEADER!r}", path=path, line=1)
+    rows = lines[1:]
+    n = len(keyframes.timestamps)
+    if len(rows) != n:
+        raise InputError(f"{len(rows)} rows but {keyframes_path.name} has {n} keyframes; "
+                         "one row per keyframe", path=path)
+    out = np.empty((n, 3))
+    for k, (lineno, text) in enumerate(rows):
+        cells = text.split(",")
+        if len(cells) != 4:
+            raise InputError(f"expected 4 comma-separated values, got {len(cells)}", path=path,
+                             line=lineno)
+        t = float(TIMESTAMP_Q.parse(cells[0], path, lineno, "timestamp"))
+        if abs(t - keyframes.timestamps[k]) > TIMESTAMP_TOLERANCE:
+            raise InputError(f"timestamp {cells[0].strip()} is not keyframe {k}'s "
+                             f"({plain_number(keyframes.timestamps[k])}, "
+                             f"{keyframes_path.name} line {keyframes.lines[k]})", path=path,
+                             line=lineno)
+        for j, name in enumerate(("sigma_x", "sigma_y", "sigma_z")):
+            out[k, j] = POSITION_SIGMA.parse(cells[j + 1], path, lineno, name)
+    return out
 
 
 def read_flight(folder: StrPath, mmap: bool = True,
@@ -315,7 +383,7 @@ _DIR_CONTENTS: dict[str, tuple[Callable[[Path], bool], str]] = {
 }
 
 
-def _only_flight_entries(folder: Path) -> str | None:
+def only_flight_entries(folder: Path) -> str | None:
     """None if ``folder`` holds only flight-folder entries (safe to replace), else why not.
 
     An OSError (e.g. an unreadable ``heatmaps/``) propagates; :func:`check_output_dir`
@@ -339,15 +407,18 @@ def check_flight_destination(folder: StrPath, overwrite: bool = False,
     (a file or symbolic link, a non-empty folder without ``overwrite``, a folder that is not
     a flight folder), before the flight to write exists. ``overwrite_hint`` ends the
     message for a non-empty folder."""
-    check_output_dir(folder, overwrite, _only_flight_entries, overwrite_hint)
+    check_output_dir(folder, overwrite, only_flight_entries, overwrite_hint)
 
 
 @contextlib.contextmanager
-def flight_output_dir(folder: StrPath, overwrite: bool = False) -> Iterator[Path]:
+def flight_output_dir(folder: StrPath, overwrite: bool = False,
+                      overwrite_hint: str = OVERWRITE_HINT) -> Iterator[Path]:
     """:func:`~turbinefit.io.atomic.atomic_output_dir` with the overwrite guard of
     :func:`write_flight`, for writers that fill a flight folder file by file (the
-    importers)."""
-    with atomic_output_dir(folder, overwrite=overwrite, may_replace=_only_flight_entries) as tmp:
+    importers); ``overwrite_hint`` ends the message for a non-empty folder, also the one
+    a concurrent run finds (a command line names its option)."""
+    with atomic_output_dir(folder, overwrite=overwrite, may_replace=only_flight_entries,
+                           overwrite_hint=overwrite_hint) as tmp:
         yield tmp
 
 
@@ -423,6 +494,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
     if flight.gt_world_T_cam is not None:
         texts[GT_POSES_FILE] = format_tum(flight.timestamps, flight.gt_world_T_cam,
                                           root / GT_POSES_FILE, "ground-truth world_T_cam")
+    if flight.position_sigma is not None:
+        texts[SIGMA_FILE] = format_position_sigmas(flight.timestamps, flight.position_sigma)
     if flight.gt_turbine is not None:
         texts[GT_TURBINE_FILE] = format_turbine_yaml(
             flight.gt_turbine, "ground-truth turbine parameters", root / GT_TURBINE_FILE)
@@ -432,7 +505,7 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                              f"(allowed: {', '.join(sorted(FLIGHT_ENTRIES - _DATA_ENTRIES))})")
         texts[name] = text
 
-    with atomic_output_dir(root, overwrite=overwrite, may_replace=_only_flight_entries,
+    with atomic_output_dir(root, overwrite=overwrite, may_replace=only_flight_entries,
                            overwrite_hint=overwrite_hint) as tmp:
         for name, text in texts.items():
             write_text_atomic(tmp / name, text, fsync=False)

@@ -184,8 +184,9 @@ def read_georef_yaml(path: StrPath) -> Georef:
     """Read ``georef.yaml``.
 
     Raises:
-        InputError: naming the file and key (missing, unknown, out of range, a frame other
-            than ``enu``).
+        InputError: naming the file and key (missing, unknown, out of range - the ranges
+            of :mod:`turbinefit.io.quantities`, which ``import dji`` applies to photos -,
+            a frame other than ``enu``).
     """
     data = load_yaml_mapping(path)
     known = ("latitude", "longitude", "altitude", "frame", "time_origin")
@@ -199,14 +200,15 @@ def read_georef_yaml(path: StrPath) -> Georef:
     if data["frame"] != "enu":
         raise InputError(f"only 'enu' is supported, got {data['frame']!r}", path=path,
                          field="frame")
-    values = {k: parse_number(data[k], path, k) for k in known[:3]}
+    from turbinefit.io.quantities import check_latlonalt
+
+    lat, lon, alt = check_latlonalt(parse_number(data["latitude"], path, "latitude"),
+                                    parse_number(data["longitude"], path, "longitude"),
+                                    parse_number(data["altitude"], path, "altitude"), path)
     time_origin = data.get("time_origin")
     if time_origin is not None and not isinstance(time_origin, str):
         time_origin = str(time_origin)
-    try:
-        return Georef(**values, time_origin=time_origin)
-    except ValueError as e:
-        raise InputError(str(e), path=path) from None
+    return Georef(lat, lon, alt, time_origin=time_origin)
 
 
 def read_flight_georef(flight_dir: StrPath) -> Georef | None:

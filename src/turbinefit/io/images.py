@@ -6,6 +6,14 @@ decodes and encodes (PNG, JPEG and whatever else it reads); grey, palette, 16-bi
 alpha images are converted to 8-bit RGB, and EXIF orientation is applied, so a photo is
 seen the way a viewer shows it.
 
+**JPEG photos whatever their structure.** Many cameras (most DJI drones: Mavic, Zenmuse
+H20/H20T/H20N, M30T ...) write an ordinary JPEG followed by a second, preview image, announced
+by a Multi-Picture Format (MPF) APP2 segment; Pillow opens such a file as format ``MPO``
+with two frames. Every reader here (:func:`open_photo`, and through it :func:`read_image`,
+:func:`image_size`, :func:`check_image` and :func:`turbinefit.io.dji.read_dji_photo`)
+takes it as the JPEG it is: metadata (EXIF, XMP) from the primary image, pixels from the
+first frame. Other APP segments (a thermal camera's raw data, FLIR records) are skipped.
+
 A JPEG photo that is only used at a reduced size is decoded at that size:
 ``read_image(path, reduce_to=(w, h))`` asks Pillow for a DCT-scaled decode
 (:meth:`PIL.Image.Image.draft`: 1/2, 1/4 or 1/8 of the size, the smallest scale that is
@@ -26,7 +34,9 @@ shows no aliasing; heat-maps are resized the same way by
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
+import os
 import warnings
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -41,6 +51,10 @@ from turbinefit.io.limits import MAX_IMAGE_PIXELS, check_image_size, open_input
 
 #: File name suffixes taken as images when a folder is listed (lower case).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: Pillow's formats of a JPEG file: plain, or with MPF images appended (``MPO``).
+JPEG_FORMATS = frozenset({"JPEG", "MPO"})
+#: What a file Pillow cannot identify is called, by default.
+NOT_AN_IMAGE = "not an image file (Pillow cannot identify it)"
 
 # Pillow's own bomb guard (89 M pixels by default) is only a backstop above our limit,
 # MAX_IMAGE_PIXELS (checked with our message from the header): it warns at 1 G pixels,
@@ -51,8 +65,9 @@ U8Image = NDArray[np.uint8]
 
 
 @contextlib.contextmanager
-def _image_errors(p: Path) -> Iterator[None]:
-    """Turn Pillow's and the OS's failures on image file ``p`` into one-line InputErrors."""
+def _image_errors(p: Path, unidentified: str = NOT_AN_IMAGE) -> Iterator[None]:
+    """Turn Pillow's and the OS's failures on image file ``p`` into one-line InputErrors
+    (``unidentified``: the message for a file Pillow cannot identify)."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
@@ -62,7 +77,7 @@ def _image_errors(p: Path) -> Iterator[None]:
     except IsADirectoryError as e:
         raise InputError("is a directory, not an image file", path=p) from e
     except UnidentifiedImageError as e:
-        raise InputError("not an image file (Pillow cannot identify it)", path=p) from e
+        raise InputError(unidentified, path=p) from e
     except OSError as e:
         raise InputError(f"cannot read image: {e.strerror or e}", path=p) from e
     except (Image.DecompressionBombWarning, Image.DecompressionBombError) as e:
@@ -73,17 +88,37 @@ def _image_errors(p: Path) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _open_image(p: Path, min_side: bool = False) -> Iterator[Image.Image]:
-    """The image file ``p`` opened lazily (header only), errors as :func:`_image_errors`:
-    only a regular file (:func:`~turbinefit.io.limits.open_input`), of at most
+def open_photo(path: StrPath, min_side: bool = False, jpeg_only: str | None = None,
+               unidentified: str = NOT_AN_IMAGE) -> Iterator[Image.Image]:
+    """The one way turbinefit opens an image file: lazily (header only), errors as
+    one-line InputErrors naming the file; only a regular file
+    (:func:`~turbinefit.io.limits.open_input`), of at most
     :data:`~turbinefit.io.limits.MAX_IMAGE_PIXELS` pixels (and, with ``min_side``, at
     least :data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side) by its header, before
-    any pixel is decoded."""
-    with open_input(p, missing="image file not found") as f, _image_errors(p), Image.open(f) as im:
+    any pixel is decoded. A JPEG with MPF images appended is its first frame (module
+    docstring).
+
+    Args:
+        jpeg_only: if given, anything but a JPEG (:data:`JPEG_FORMATS`) is refused with
+            this message followed by `` (FORMAT image)``.
+        unidentified: the message for a file Pillow cannot identify.
+    """
+    p = Path(path)
+    with (open_input(p, missing="image file not found") as f, _image_errors(p, unidentified),
+          Image.open(f) as im):
+        if jpeg_only is not None and im.format not in JPEG_FORMATS:
+            raise InputError(f"{jpeg_only} ({im.format or 'unknown'} image)", path=p)
+        if getattr(im, "n_frames", 1) > 1:
+            im.seek(0)  # the primary image of an MPF file (Pillow opens it there too)
         w, h = int(im.width), int(im.height)
         if w * h > MAX_IMAGE_PIXELS or min_side:
             check_image_size(w, h, p, what="image")
         yield im
+
+
+def is_jpeg(im: Image.Image) -> bool:
+    """Whether an opened image is a JPEG (with or without MPF images appended)."""
+    return im.format in JPEG_FORMATS
 
 
 #: EXIF orientations that swap width and height (a rotation by 90 degrees).
@@ -111,8 +146,8 @@ def read_image(path: StrPath, reduce_to: tuple[int, int] | None = None) -> U8Ima
             than :data:`~turbinefit.io.limits.MAX_IMAGE_PIXELS` (refused before decoding).
     """
     p = Path(path)
-    with _open_image(p) as im:
-        jpeg = reduce_to is not None and im.format == "JPEG"
+    with open_photo(p) as im:
+        jpeg = reduce_to is not None and is_jpeg(im)
         if reduce_to is not None and jpeg:
             w, h = (reduce_to[1], reduce_to[0]) if _swaps_axes(im) else reduce_to
             im.draft("RGB", (int(w), int(h)))
@@ -136,7 +171,7 @@ def image_size(path: StrPath) -> tuple[int, int]:
         InputError: as :func:`read_image`, for a missing file or one that is not an image.
     """
     p = Path(path)
-    with _open_image(p, min_side=True) as im:
+    with open_photo(p, min_side=True) as im:
         w, h = int(im.width), int(im.height)
         return (h, w) if _swaps_axes(im) else (w, h)
 
@@ -148,7 +183,7 @@ def check_image(path: StrPath) -> tuple[int, int]:
         InputError: as :func:`read_image`, for a missing file or one that is not an image.
     """
     p = Path(path)
-    with _open_image(p, min_side=True) as im:
+    with open_photo(p, min_side=True) as im:
         return int(im.width), int(im.height)
 
 
@@ -185,14 +220,23 @@ def list_images(inputs: Iterable[Path],
     """Image files named by ``inputs``: files as given, folders listed (not recursively,
     lower-cased suffixes in ``suffixes``, sorted by name).
 
+    A symbolic link among them is followed; one that leads nowhere (dangling, or a loop)
+    is an error naming it, never skipped in silence.
+
     Raises:
-        InputError: for a path that does not exist, or a folder with no image files.
+        InputError: for a path that does not exist, a folder with no image files, or a
+            symbolic link that cannot be followed.
     """
     out: list[Path] = []
     for p in inputs:
         if p.is_dir():
-            found = sorted(q for q in p.iterdir()
-                           if q.is_file() and q.suffix.lower() in suffixes)
+            found = []
+            for q in sorted(p.iterdir()):
+                if q.suffix.lower() not in suffixes:
+                    continue
+                _check_link(q)
+                if q.is_file():
+                    found.append(q)
             if not found:
                 raise InputError(f"no image files ({', '.join(suffixes)}) in folder",
                                  path=p)
@@ -200,5 +244,21 @@ def list_images(inputs: Iterable[Path],
         elif p.exists():
             out.append(p)
         else:
+            _check_link(p)
             raise InputError("no such file or folder", path=p)
     return out
+
+
+def _check_link(p: Path) -> None:
+    """Refuse a symbolic link that leads nowhere (its target missing, or a loop)."""
+    if not p.is_symlink():
+        return
+    try:
+        p.resolve(strict=True)
+    except RuntimeError:  # Python < 3.13: a loop
+        raise InputError("symbolic link loop", path=p) from None
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise InputError("symbolic link loop", path=p) from None
+        raise InputError(f"symbolic link to {os.readlink(p)!r}, which does not exist",
+                         path=p) from None

@@ -46,7 +46,14 @@ from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import read_tum_lines
 from turbinefit.io.turbine_yaml import read_turbine_yaml
 from turbinefit.io.yaml_files import load_yaml_mapping
-from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, summary_json
+from turbinefit.jobs.outputs import (
+    OutputKind,
+    check_not_input,
+    plot_error,
+    recorded_input,
+    recorded_path,
+    summary_json,
+)
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
 COVERAGE_OUTPUTS = OutputKind("coverage", frozenset({
@@ -106,8 +113,8 @@ def _geometry(path: Path) -> TurbineGeometry:
 
 
 def _flight_of(fit_dir: Path) -> Path:
-    """The flight folder ``summary.json`` of a fit names (as given to ``fit``: relative to
-    the working directory then, or to the fit folder's parent)."""
+    """The flight folder ``summary.json`` of a fit names (relative to the fit folder, or
+    absolute; :func:`~turbinefit.jobs.outputs.recorded_input`)."""
     path = fit_dir / "summary.json"
     if not path.is_file():
         raise InputError("missing: cannot tell which flight it came from; give --flight", path)
@@ -117,7 +124,7 @@ def _flight_of(fit_dir: Path) -> Path:
         name = None
     if not isinstance(name, str):
         raise InputError("names no flight folder; give --flight", path, field="flight")
-    for cand in (Path(name), fit_dir.parent / name):
+    for cand in recorded_input(name, fit_dir):
         if (cand / CAMERA_FILE).is_file():
             return cand
     raise InputError(f"its flight folder {name} has no {CAMERA_FILE} here; give --flight",
@@ -345,8 +352,8 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     cov = flight_coverage(surface, cam, fit.world_T_cam, step)
     timings = {"load": t1 - t0, "coverage": time.perf_counter() - t1}
     summary = {
-        "turbinefit_version": __version__, "fit": str(fit_dir),
-        "flight": None if fit.flight_dir is None else str(fit.flight_dir),
+        "turbinefit_version": __version__, "fit": recorded_path(fit_dir, out_dir),
+        "flight": None if fit.flight_dir is None else recorded_path(fit.flight_dir, out_dir),
         "keyframes": len(fit.timestamps), "step_m": step, "max_gsd_mm_px": max_gsd_mm,
         "blade_pitch_deg": math.degrees(blade_pitch), "blade_twist_deg": math.degrees(blade_twist),
         "blades": {bl.name: {"model_blade": bl.model_index + 1,

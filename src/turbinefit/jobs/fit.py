@@ -31,7 +31,13 @@ from turbinefit.io.mesh import write_turbine_glb
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.init import InitSummary, estimate_turbine
-from turbinefit.jobs.outputs import FIT_OUTPUTS, flight_inputs, plot_error, summary_json
+from turbinefit.jobs.outputs import (
+    FIT_OUTPUTS,
+    flight_inputs,
+    plot_error,
+    recorded_path,
+    summary_json,
+)
 from turbinefit.jobs.sources import fit_config_for, open_heatmaps, source_photos
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
@@ -215,7 +221,7 @@ def fit_folder(
         raise InputError("heat-map contains NaN or inf", source.where(exc.keyframe)) from None
     timings["solve"] = time.perf_counter() - t1
 
-    summary = FitSummary(str(flight_dir), flight.num_keyframes,
+    summary = FitSummary(recorded_path(flight_dir, out_dir), flight.num_keyframes,
                          (flight.camera.width, flight.camera.height), source.description,
                          result, flight.turbine, timings=timings,
                          defaults=None if config is not None else source.defaults_name,

@@ -1,39 +1,56 @@
-"""The ``import dji`` job: DJI photos (their EXIF/XMP metadata) to a georeferenced flight
-folder that ``fit`` and ``track`` read.
+"""The ``import dji`` job: DJI photos (their EXIF/XMP metadata) to georeferenced flight
+folders that ``fit`` and ``track`` read.
 
 What each photo's metadata becomes (:mod:`turbinefit.io.dji` reads it,
-:mod:`turbinefit.io.georef` states the conventions):
+:mod:`turbinefit.io.georef` states the conventions; docs/import.md says it for users):
 
-* **Timestamps**: seconds since the first photo, from EXIF ``DateTimeOriginal`` +
-  ``SubSecTimeOriginal`` (camera local time without a zone, so only differences are
-  used); the first photo's time is kept as ``time_origin`` in ``georef.yaml``. Keyframes
-  are sorted by time; two photos at the same time are an error.
+* **Cameras**: photos are grouped by camera (EXIF make and model, the kind of camera -
+  wide, zoom or thermal - from the camera table, XMP ``ImageSource`` or a file name suffix
+  ``_W``/``_Z``/``_T``, and the image size). Photos of several cameras (the wide, zoom and
+  thermal photos of one H20T capture) are refused, naming each, unless ``camera`` picks one.
+* **Flights**: the chosen camera's photos, sorted by EXIF ``DateTimeOriginal`` +
+  ``SubSecTimeOriginal``, are split where more than ``max_gap_s`` passes between two
+  photos. One flight is written to ``out_dir``; several to ``out_dir/flight-1``,
+  ``flight-2``, ... (each a flight folder of its own, all written at once); a flight of one
+  photo among several flights (a photo whose clock is off) is left out and named.
+* **Timestamps**: seconds since the flight's first photo (camera local time without a
+  zone, so only differences are used); the first photo's time is kept as ``time_origin``
+  in ``georef.yaml``. Two photos at the same time are an error.
 * **Positions**: WGS84 latitude, longitude (XMP, else EXIF GPS) and ``AbsoluteAltitude``
   (else EXIF ``GPSAltitude``) to east-north-up metres about the origin: ``origin`` if
-  given, else the first photo's position at ground level (its altitude minus its
-  ``RelativeAltitude``, i.e. the take-off point's height), written to ``georef.yaml``.
+  given, else the flight's first photo at ground level (its altitude minus its
+  ``RelativeAltitude``), written to ``georef.yaml``. A photo farther than
+  :data:`MAX_FLIGHT_RADIUS_M` from the flight's median position (or at latitude and
+  longitude 0, 0: no GPS fix) is refused, naming it, and so is an ``origin`` that far
+  from the photos.
 * **Attitude**: the gimbal angles (``GimbalYawDegree`` etc.; where the gimbal yaw is
   missing the aircraft's ``FlightYawDegree``, reported in the summary) to ``world_T_cam``
   (:func:`turbinefit.io.georef.world_T_cam_from_gimbal`), written to ``keyframes.txt``.
-* **Camera** (``camera.yaml``, no distortion): ``CalibratedFocalLength`` and
-  ``CalibratedOpticalCenterX``/``Y`` when present; else the 35 mm equivalent focal length
-  over the image diagonal (``f = f35 * hypot(W, H) / hypot(36, 24)``), else
-  ``FocalLength`` times ``FocalPlaneXResolution``; principal point at the image centre
-  (``(W - 1) / 2``, ``(H - 1) / 2``). Every photo must give the same camera.
-* **Photos**: ``images/<timestamp %.6f>.jpg``, hard links to the originals where the file
-  system allows, else copies; the originals are never changed.
+* **Camera** (``camera.yaml``, :func:`photo_camera`): DJI's calibration
+  (``DewarpData``: intrinsics and OpenCV distortion), else ``CalibratedFocalLength`` and
+  ``CalibratedOpticalCenterX``/``Y``, else the camera table
+  (:mod:`turbinefit.io.dji_cameras`: the lens on the sensor's width), else the 35 mm
+  equivalent focal length over the sensor's full frame (taken as 4:3: a wider photo is a
+  crop of it, and the summary says so), else ``FocalLength`` times
+  ``FocalPlaneXResolution``. Every camera passes the check ``camera.yaml`` passes
+  (:func:`turbinefit.io.camera_yaml.check_camera`); every photo of a flight must give the
+  same camera.
+* **RTK**: when the photos carry ``RtkFlag``, each keyframe's position standard
+  deviations (:func:`rtk_sigmas`) go to ``keyframes_sigma.csv``
+  (:mod:`turbinefit.io.flight_folder`), which ``fit`` and ``track`` turn into position
+  priors.
+* **Photos**: ``images/<timestamp %.6f>.jpg``, hard links to the originals (to the files
+  symbolic links lead to) where the file system allows, else copies; the originals are
+  never changed.
 * **Turbine**: ``turbine_yaml`` is validated and copied in; when it gives ``latitude`` and
   ``longitude`` of the base (a georeferenced fit's ``turbine.yaml``), its base is moved to
-  that position in this flight's frame. Without it the folder has no ``turbine.yaml``
-  (``fit`` and ``track`` then estimate one). A turbine position alone
+  that position in the flight's frame. A turbine position alone
   (``turbine_location_deg``) makes ``turbine.yaml`` from the photos
   (:func:`turbinefit.jobs.init.init_folder` near that position, the photos detected by
   the CNN); a parameter they do not determine is refused and nothing is written.
 
-Bad input (no photos, a non-JPEG, a photo without time, GPS or gimbal metadata, two
-photos at one time, photos of two cameras, a bad turbine file) is an
-:class:`~turbinefit.errors.InputError` naming the file, raised before anything is written.
-The folder is written atomically (:func:`turbinefit.io.flight_folder.flight_output_dir`).
+Bad input is an :class:`~turbinefit.errors.InputError` naming the file (and field), raised
+before anything is written; the output is written atomically.
 """
 
 from __future__ import annotations
@@ -41,6 +58,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
+import re
 import shutil
 import time
 from collections.abc import Sequence
@@ -50,19 +68,27 @@ from typing import Any
 
 import numpy as np
 
-from turbinefit.errors import InputError
+from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.io.atomic import StrPath, read_text, write_text_atomic
-from turbinefit.io.camera_yaml import format_camera_yaml
+from turbinefit.io.atomic import (
+    StrPath,
+    atomic_output_dir,
+    check_output_dir,
+    read_text,
+    write_text_atomic,
+)
+from turbinefit.io.camera_yaml import check_camera, format_camera_yaml
 from turbinefit.io.dji import DjiPhoto, list_photos, read_dji_photo
+from turbinefit.io.dji_cameras import KINDS, find_camera
 from turbinefit.io.flight_folder import (
     CAMERA_FILE,
     GEOREF_FILE,
     IMAGE_DIR,
     KEYFRAMES_FILE,
+    SIGMA_FILE,
     TURBINE_FILE,
-    check_flight_destination,
-    flight_output_dir,
+    format_position_sigmas,
+    only_flight_entries,
 )
 from turbinefit.io.georef import (
     Georef,
@@ -72,6 +98,7 @@ from turbinefit.io.georef import (
     world_T_cam_from_gimbal,
 )
 from turbinefit.io.heatmap_files import keyframe_stem
+from turbinefit.io.quantities import Quantity, check_latlonalt
 from turbinefit.io.tum import format_tum
 from turbinefit.io.turbine_yaml import format_turbine_yaml, read_turbine_yaml
 from turbinefit.jobs.outputs import OVERWRITE_HINT, check_not_input
@@ -79,6 +106,64 @@ from turbinefit.jobs.outputs import OVERWRITE_HINT, check_not_input
 #: Diagonal of a 35 mm film frame (36 x 24 mm) [mm]: the 35 mm equivalent focal length's
 #: reference.
 FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
+#: The aspect ratio (width / height) of the sensor assumed behind a 35 mm equivalent focal
+#: length when the camera is not in the table: most drone cameras' sensors are 4:3.
+SENSOR_ASPECT = 4.0 / 3.0
+#: Default longest pause between two photos of one flight [s] (``--max-gap``).
+DEFAULT_MAX_GAP_S = 600.0
+#: ``--max-gap``: a pause [s] (at most about 30 years).
+MAX_GAP = Quantity("gap between flights", "s", 0.0, 1e9, lo_open=True)
+#: Largest distance [m] of a photo from its flight's median position: beyond any drone's
+#: radio range (DJI's enterprise drones: 15-20 km); a photo farther away has a wrong
+#: position (a flipped sign or hemisphere, no GPS fix) and is left out.
+MAX_FLIGHT_RADIUS_M = 20_000.0
+#: Name of the k-th flight's folder when the photos hold several flights.
+FLIGHT_DIR = "flight-{}"
+#: Kinds of camera told by a file name's suffix (DJI's multi-camera payloads).
+_SUFFIX_KINDS = {"W": "wide", "Z": "zoom", "T": "thermal", "R": "thermal"}
+#: Kinds of camera told by XMP ``ImageSource``.
+_SOURCE_KINDS = {"widecamera": "wide", "zoomcamera": "zoom", "infraredcamera": "thermal",
+                 "visualcamera": "wide"}
+#: RTK position standard deviations' floors [m] (horizontal, vertical) per solution:
+#: what each solution is trusted to at best, whatever the receiver says (DJI's manuals:
+#: fixed "centimetre level", float "decimetre to metre level", single point "metre level";
+#: single-point and no-RTK errors drift together over a flight, so their priors are kept
+#: weak, as ``FitConfig.gps_sigma``).
+RTK_SIGMA_FLOOR = {"fixed": (0.02, 0.03), "float": (0.3, 0.5), "single": (3.0, 5.0)}
+
+
+@dataclass
+class DjiFlightSummary:
+    """One flight folder ``import dji`` wrote.
+
+    Attributes:
+        out_dir: the flight folder.
+        num_photos: photos imported (= keyframes).
+        first_photo: the name of its first photo.
+        intrinsics: where the camera came from.
+        crop: how a cropped photo was placed on its sensor, or None.
+        origin: the ENU origin; origin_source: how it was chosen.
+        duration_s: time from the first photo to the last [s].
+        rtk: what ``keyframes_sigma.csv`` holds (solutions counted), or None (no RTK).
+        flight_yaw: photos whose gimbal yaw was missing (the aircraft's yaw used).
+        position_from_exif: photos whose position came from the EXIF GPS block.
+        images: how ``images/`` was filled: ``hard links``, ``copies`` or both.
+        turbine: what ``turbine.yaml`` is, or None (not written).
+    """
+
+    out_dir: str
+    num_photos: int
+    first_photo: str
+    intrinsics: str
+    crop: str | None
+    origin: Georef
+    origin_source: str
+    duration_s: float
+    rtk: str | None = None
+    flight_yaw: list[str] = field(default_factory=list)
+    position_from_exif: list[str] = field(default_factory=list)
+    images: str = ""
+    turbine: str | None = None
 
 
 @dataclass
@@ -86,32 +171,23 @@ class DjiImportSummary:
     """What ``import dji`` made (printed by the command).
 
     Attributes:
-        out_dir: the flight folder written.
-        num_photos: photos imported (= keyframes).
-        camera: camera make and model; image_size: (W, H) [px].
-        intrinsics: where the focal length came from.
-        origin: the ENU origin; origin_source: how it was chosen.
-        duration_s: time from the first photo to the last [s].
-        flight_yaw: photos whose gimbal yaw was missing (the aircraft's yaw used).
-        position_from_exif: photos whose position came from the EXIF GPS block.
-        images: how ``images/`` was filled: ``hard links``, ``copies`` or both.
-        turbine: what ``turbine.yaml`` is, or None (not written).
+        out_dir: the output folder: the flight folder, or the folder of flight folders.
+        camera: camera make, model and kind; image_size: (W, H) [px].
+        flights: each flight folder written.
+        other_cameras: photos of other cameras not imported (``camera`` picked one).
         timings: seconds per stage (read, write, total).
     """
 
     out_dir: str
-    num_photos: int
     camera: str
     image_size: tuple[int, int]
-    intrinsics: str
-    origin: Georef
-    origin_source: str
-    duration_s: float
-    flight_yaw: list[str] = field(default_factory=list)
-    position_from_exif: list[str] = field(default_factory=list)
-    images: str = ""
-    turbine: str | None = None
+    flights: list[DjiFlightSummary]
+    other_cameras: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def num_photos(self) -> int:
+        return sum(f.num_photos for f in self.flights)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -125,18 +201,25 @@ def import_dji(
     turbine_yaml: StrPath | None = None,
     turbine_location_deg: tuple[float, float] | None = None,
     overwrite: bool = False,
+    camera: str | None = None,
+    max_gap_s: float = DEFAULT_MAX_GAP_S,
 ) -> DjiImportSummary:
-    """Make the flight folder ``out_dir`` from DJI photos (module docstring).
+    """Make flight folders from DJI photos (module docstring).
 
     Args:
         inputs: photos and folders of photos (folders: their ``.jpg``/``.jpeg`` files).
-        out_dir: the flight folder to write; an existing non-empty one only with
-            ``overwrite`` and only if it holds nothing but a flight folder's entries.
+        out_dir: where to write: the flight folder, or with several flights the folder of
+            ``flight-1``, ``flight-2``, ...; an existing non-empty one only with
+            ``overwrite`` and only if it holds nothing but what this writes.
         origin: (latitude [deg], longitude [deg], altitude [m]) of the ENU origin; None =
-            the first photo's position at ground level.
+            each flight's first photo at ground level.
         turbine_yaml: a turbine file to copy in as ``turbine.yaml``.
         turbine_location_deg: (latitude, longitude) of the turbine's base: turbine.yaml
             is estimated from the photos near it (``turbinefit init --near``).
+        camera: which camera's photos to import when they are of several: ``wide``,
+            ``zoom``, ``thermal``, or a name (EXIF model, e.g. ``ZH20T``, or make and
+            model); None = the only one.
+        max_gap_s: the longest pause [s] between two photos of one flight.
 
     Raises:
         InputError: naming the file of the first problem; nothing is written then.
@@ -147,20 +230,81 @@ def import_dji(
     turbine_path = None if turbine_yaml is None else Path(turbine_yaml)
     if not paths:
         raise InputError("no photos given", field="import dji")
+    max_gap_s = MAX_GAP.check(max_gap_s, field="--max-gap")
+    if origin is not None:
+        origin = check_latlonalt(*origin, prefix="--origin ")  # type: ignore[assignment]
     check_not_input(out, paths + ([turbine_path] if turbine_path is not None else []))
-    check_flight_destination(out, overwrite, OVERWRITE_HINT)
+    check_output_dir(out, overwrite, _may_replace, OVERWRITE_HINT)
 
-    photos = sorted_by_time([read_dji_photo(p) for p in list_photos(paths)])
+    photos = [read_dji_photo(p) for p in list_photos(paths)]
+    chosen, others = pick_camera(photos, camera)
+    groups = split_flights(sorted_by_time(chosen), max_gap_s)
+    plans = [_plan_flight(g, origin, turbine_path, turbine_location_deg) for g in groups]
+    t1 = time.perf_counter()
+    several = len(plans) > 1
+    flights = []
+    with atomic_output_dir(out, overwrite=overwrite, may_replace=_may_replace,
+                           overwrite_hint=OVERWRITE_HINT) as tmp:
+        for k, plan in enumerate(plans, start=1):
+            sub = FLIGHT_DIR.format(k) if several else ""
+            flights.append(_write_flight(plan, tmp / sub, out / sub))
+    t2 = time.perf_counter()
+    first = plans[0].photos[0]
+    return DjiImportSummary(
+        str(out), camera_label(first), (first.width, first.height), flights,
+        other_cameras=others,
+        timings={"read": t1 - t0, "write": t2 - t1, "total": t2 - t0})
+
+
+def _only_flight_sets(folder: Path) -> str | None:
+    """None if ``folder`` holds nothing but ``flight-N`` flight folders."""
+    for entry in folder.iterdir():
+        if not re.fullmatch(r"flight-[0-9]+", entry.name) or not entry.is_dir() \
+                or entry.is_symlink():
+            return f"{entry.name!r} is not a flight folder of turbinefit import dji"
+        why = only_flight_entries(entry)
+        if why is not None:
+            return f"{entry.name}: {why}"
+    return None
+
+
+def _may_replace(folder: Path) -> str | None:
+    """None if ``folder`` is a flight folder or a folder of flight folders (what ``import
+    dji`` writes, with one flight or several), else why it may not be replaced."""
+    why = only_flight_entries(folder)
+    return None if why is None or _only_flight_sets(folder) is None else why
+
+
+@dataclass
+class _FlightPlan:
+    """Everything one flight folder holds, computed before anything is written."""
+
+    photos: list[DjiPhoto]
+    texts: dict[str, str]
+    timestamps: np.ndarray
+    summary: DjiFlightSummary
+    georef: Georef
+    near_xy: tuple[float, float] | None
+
+
+def _plan_flight(photos: list[DjiPhoto], origin: tuple[float, float, float] | None,
+                 turbine_path: Path | None,
+                 turbine_location_deg: tuple[float, float] | None) -> _FlightPlan:
+    """The files of one flight's folder (module docstring)."""
+    for p in photos:
+        photo_pose(p)  # every photo has what a keyframe needs, before positions are judged
+    check_positions(photos)
     meta = np.array([photo_pose(photo) for photo in photos])  # (N, 6)
-    camera, intrinsics = flight_camera(photos)
+    cam, intrinsics, crop = flight_camera(photos)
     if origin is None:
         georef = ground_origin(photos[0])
         origin_source = f"the first photo, {photos[0].path.name}, at ground level"
     else:
-        georef = _georef(*origin)
+        georef = Georef(*origin)
         origin_source = "given"
+        _check_near(georef, photos)
     first_time = photos[0].time
-    assert first_time is not None  # check_photo
+    assert first_time is not None  # sorted_by_time
     georef = replace(georef, time_origin=first_time.isoformat(timespec="microseconds"))
     timestamps = np.array([(p.time - first_time).total_seconds()  # type: ignore[operator]
                            for p in photos])
@@ -168,31 +312,192 @@ def import_dji(
     turbine_text, turbine_note = _turbine(turbine_path, georef)
     near_xy = (None if turbine_location_deg is None
                else _flight_position(georef, *turbine_location_deg))
-
     texts = {
-        CAMERA_FILE: format_camera_yaml(camera, name=photos[0].camera_name),
-        KEYFRAMES_FILE: format_tum(timestamps, world_T_cam, out / KEYFRAMES_FILE,
+        CAMERA_FILE: format_camera_yaml(cam, name=photos[0].camera_name),
+        KEYFRAMES_FILE: format_tum(timestamps, world_T_cam, None,
                                    "world_T_cam of each photo (turbinefit import dji)"),
         GEOREF_FILE: format_georef_yaml(georef, "turbinefit import dji: the world frame's "
                                         "origin (east-north-up, metres)"),
     }
+    sigmas, rtk = rtk_sigmas(photos)
+    if sigmas is not None:
+        texts[SIGMA_FILE] = format_position_sigmas(timestamps, sigmas)
     if turbine_text is not None:
         texts[TURBINE_FILE] = turbine_text
-    t1 = time.perf_counter()
-    with flight_output_dir(out, overwrite) as tmp:
-        for name, text in texts.items():
-            write_text_atomic(tmp / name, text, fsync=False)
-        how = link_photos([p.path for p in photos], timestamps, tmp / IMAGE_DIR, out / IMAGE_DIR)
-        if near_xy is not None:  # turbine.yaml from the photos, near that position
-            turbine_note = _initialise(tmp, out, near_xy, georef)
-    t2 = time.perf_counter()
-    return DjiImportSummary(
-        str(out), len(photos), photos[0].camera_name, (camera.width, camera.height),
-        intrinsics, georef, origin_source, float(timestamps[-1]),
+    summary = DjiFlightSummary(
+        "", len(photos), photos[0].path.name, intrinsics, crop, georef, origin_source,
+        float(timestamps[-1]), rtk=rtk,
         flight_yaw=[p.path.name for p in photos if p.gimbal_yaw is None],
         position_from_exif=[p.path.name for p in photos if p.position_source == "exif"],
-        images=how, turbine=turbine_note,
-        timings={"read": t1 - t0, "write": t2 - t1, "total": t2 - t0})
+        turbine=turbine_note)
+    return _FlightPlan(photos, texts, timestamps, summary, georef, near_xy)
+
+
+def _write_flight(plan: _FlightPlan, tmp: Path, final: Path) -> DjiFlightSummary:
+    """Write one planned flight folder into ``tmp`` (``final`` names errors)."""
+    tmp.mkdir(parents=True, exist_ok=True)
+    for name, text in plan.texts.items():
+        write_text_atomic(tmp / name, text, fsync=False)
+    how = link_photos([p.path for p in plan.photos], plan.timestamps, tmp / IMAGE_DIR,
+                      final / IMAGE_DIR)
+    note = plan.summary.turbine
+    if plan.near_xy is not None:  # turbine.yaml from the photos, near that position
+        note = _initialise(tmp, final, plan.near_xy, plan.georef)
+    return replace(plan.summary, out_dir=str(final), images=how, turbine=note)
+
+
+# ------------------------------------------------------------------ cameras and flights
+
+def camera_kind(photo: DjiPhoto) -> str:
+    """``wide``, ``zoom``, ``thermal`` or '' (unknown): from the camera table, else XMP
+    ``ImageSource``, else the file name's suffix (``DJI_0001_W.JPG``)."""
+    cam = find_camera(photo.make, photo.model, photo.width, photo.focal_length_mm)
+    if cam is not None:
+        return cam.kind
+    kind = _SOURCE_KINDS.get(photo.image_source.lower())
+    if kind is not None:
+        return kind
+    m = re.search(r"_([A-Za-z])$", photo.path.stem)
+    return _SUFFIX_KINDS.get(m.group(1).upper(), "") if m else ""
+
+
+def camera_label(photo: DjiPhoto) -> str:
+    """The camera of a photo in words: ``DJI ZH20T thermal``."""
+    kind = camera_kind(photo)
+    return f"{photo.camera_name} {kind}" if kind else photo.camera_name
+
+
+def pick_camera(photos: list[DjiPhoto], camera: str | None) -> tuple[list[DjiPhoto], list[str]]:
+    """The photos of one camera (``camera``: a kind or a name; None: the only one) and the
+    cameras left aside, in words.
+
+    Raises:
+        InputError: for photos of several cameras and no choice, or a choice none matches
+            or that matches several, naming each camera with its count and first photo.
+    """
+    groups: dict[tuple[str, int, int], list[DjiPhoto]] = {}
+    for p in photos:
+        groups.setdefault((camera_label(p), p.width, p.height), []).append(p)
+
+    def describe(key: tuple[str, int, int]) -> str:
+        g = groups[key]
+        return f"{key[0]} {key[1]}x{key[2]} ({len(g)} photos, first {g[0].path})"
+
+    keys = list(groups)
+    if camera is not None:
+        want = camera.strip().lower()
+        keys = [k for k in keys if (want in KINDS and camera_kind(groups[k][0]) == want)
+                or want in (groups[k][0].model.lower(), groups[k][0].camera_name.lower(),
+                            k[0].lower())]
+        if not keys:
+            raise InputError(f"no photos of camera {camera!r} among "
+                             f"{'; '.join(describe(k) for k in groups)}", field="--camera")
+    if len(keys) > 1:
+        raise InputError(f"photos of {len(keys)} cameras: {'; '.join(describe(k) for k in keys)}; "
+                         "pick one with --camera wide|zoom|thermal|MODEL", field="--camera"
+                         if camera is not None else None,
+                         path=None if camera is not None else groups[keys[1]][0].path)
+    others = [describe(k) for k in groups if k != keys[0]]
+    return groups[keys[0]], others
+
+
+def split_flights(photos: list[DjiPhoto], max_gap_s: float) -> list[list[DjiPhoto]]:
+    """Photos in time order split where more than ``max_gap_s`` passes between two.
+
+    Raises:
+        InputError: for a photo alone in its flight among several (a wrong clock, or a
+            stray photo), naming it and how far in time it is from the others.
+    """
+    groups: list[list[DjiPhoto]] = [[photos[0]]]
+    for a, b in itertools.pairwise(photos):
+        gap = (b.time - a.time).total_seconds()  # type: ignore[operator]
+        if gap > max_gap_s:
+            groups.append([])
+        groups[-1].append(b)
+    if len(groups) > 1:
+        for g in groups:
+            if len(g) == 1:
+                p = g[0]
+                raise InputError(
+                    f"taken {_time_apart(p, photos)} from any other photo (DateTimeOriginal "
+                    f"{p.time}), alone in a flight of its own (flights are split at pauses "
+                    f"over {plain_number(max_gap_s)} s): a wrong clock? leave it out of the "
+                    "photos given, or raise --max-gap", path=p.path)
+    return groups
+
+
+def _time_apart(p: DjiPhoto, photos: list[DjiPhoto]) -> str:
+    s = min(abs((q.time - p.time).total_seconds())  # type: ignore[operator]
+            for q in photos if q is not p)
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if s >= size:
+            return f"{s / size:.1f} {unit}"
+    return f"{s:.1f} s"
+
+
+def check_positions(photos: list[DjiPhoto]) -> None:
+    """Refuse a flight with a photo at latitude and longitude 0, 0 (no GPS fix) or farther
+    than :data:`MAX_FLIGHT_RADIUS_M` from the photos' median position (a flipped sign or
+    hemisphere), naming the photo and the distance.
+
+    Raises:
+        InputError: naming the first such photo.
+    """
+    lat = np.array([p.latitude for p in photos], dtype=np.float64)
+    lon = np.array([p.longitude for p in photos], dtype=np.float64)
+    alt = np.array([p.altitude for p in photos], dtype=np.float64)
+    null = (lat == 0.0) & (lon == 0.0)
+    if null.all():
+        raise InputError(f"every photo of the flight ({len(photos)}) is at latitude 0, "
+                         "longitude 0: the drone had no GPS fix", path=photos[0].path)
+    good = ~null
+    centre = Georef(float(np.median(lat[good])), float(np.median(lon[good])),
+                    float(np.median(alt[good])))
+    dist = np.linalg.norm(centre.enu(lat, lon, alt), axis=-1)
+    far = null | (dist > MAX_FLIGHT_RADIUS_M)
+    if not far.any():
+        return
+    k = int(np.flatnonzero(far)[0])
+    why = ("at latitude 0, longitude 0: no GPS fix" if null[k] else
+           f"{dist[k] / 1000:.0f} km from the flight's other photos (their median position; "
+           f"a flight stays within {MAX_FLIGHT_RADIUS_M / 1000:g} km): a wrong position")
+    raise InputError(f"{why} ({int(far.sum())} of {len(photos)} photos so); leave it out "
+                     "of the photos given", path=photos[k].path)
+
+
+def _check_near(georef: Georef, photos: list[DjiPhoto]) -> None:
+    """Refuse an origin farther than :data:`MAX_FLIGHT_RADIUS_M` from the photos."""
+    lat = np.median([p.latitude for p in photos])
+    lon = np.median([p.longitude for p in photos])
+    d = float(np.hypot(*georef.enu(lat, lon, georef.altitude)[:2]))
+    if d > MAX_FLIGHT_RADIUS_M:
+        raise InputError(f"{d / 1000:.0f} km from the photos (their median position); the "
+                         f"origin must lie within {MAX_FLIGHT_RADIUS_M / 1000:g} km of them",
+                         field="--origin")
+
+
+def rtk_sigmas(photos: list[DjiPhoto]) -> tuple[np.ndarray | None, str | None]:
+    """(N, 3) position standard deviations [m] (east, north, up) of the photos from their
+    RTK status, and the solutions counted in words; (None, None) when no photo has an
+    ``RtkFlag``.
+
+    Per photo: ``RtkStdLon``, ``RtkStdLat``, ``RtkStdHgt`` (0 or missing: unknown) raised
+    to the floor of its solution (:data:`RTK_SIGMA_FLOOR`): ``RtkFlag`` 50 fixed, 32-49
+    float, anything else (16 single point, 0 none, or no flag) single.
+    """
+    if all(p.rtk_flag in (None, 0) for p in photos):
+        return None, None
+    out = np.empty((len(photos), 3))
+    counts: dict[str, int] = {}
+    for k, p in enumerate(photos):
+        flag = p.rtk_flag if p.rtk_flag is not None else 0
+        kind = "fixed" if flag == 50 else "float" if 32 <= flag <= 49 else "single"
+        counts[kind] = counts.get(kind, 0) + 1
+        h, v = RTK_SIGMA_FLOOR[kind]
+        out[k] = [max(p.rtk_std_lon or 0.0, h), max(p.rtk_std_lat or 0.0, h),
+                  max(p.rtk_std_hgt or 0.0, v)]
+    words = ", ".join(f"{counts[k]} {k}" for k in ("fixed", "float", "single") if k in counts)
+    return out, f"RTK {words}"
 
 
 def sorted_by_time(photos: list[DjiPhoto]) -> list[DjiPhoto]:
@@ -229,92 +534,121 @@ def photo_pose(photo: DjiPhoto) -> tuple[float, float, float, float, float, floa
         raise InputError("no altitude (XMP drone-dji:AbsoluteAltitude or EXIF GPSAltitude)",
                          path=photo.path)
     if photo.gimbal_pitch is None or photo.gimbal_roll is None:
-        raise InputError("no gimbal attitude (XMP drone-dji:GimbalPitchDegree and "
-                         "GimbalRollDegree)", path=photo.path)
+        missing = " and ".join(n for n, v in (("GimbalPitchDegree", photo.gimbal_pitch),
+                                              ("GimbalRollDegree", photo.gimbal_roll))
+                               if v is None)
+        raise InputError(f"no gimbal attitude (XMP drone-dji:{missing}): the camera's "
+                         "orientation is unknown; this drone's photos cannot be imported",
+                         path=photo.path)
     if photo.gimbal_yaw is None and photo.flight_yaw is None:
         raise InputError("no yaw (XMP drone-dji:GimbalYawDegree or FlightYawDegree)",
                          path=photo.path)
     if photo.orientation not in (None, 1):
         raise InputError(f"EXIF Orientation {photo.orientation}: rotated photos are not "
                          "supported", path=photo.path)
-    try:
-        Georef(photo.latitude, photo.longitude, photo.altitude)
-    except ValueError as e:
-        raise InputError(str(e), path=photo.path) from None
     yaw = photo.gimbal_yaw if photo.gimbal_yaw is not None else photo.flight_yaw
     assert yaw is not None
     return (photo.latitude, photo.longitude, photo.altitude, yaw, photo.gimbal_pitch,
             photo.gimbal_roll)
 
 
-def photo_intrinsics(photo: DjiPhoto) -> tuple[float, float, float, str]:
-    """``(f, cx, cy)`` [px] of one photo and where ``f`` came from (module docstring).
+def photo_camera(photo: DjiPhoto) -> tuple[PinholeCamera, str, str | None]:
+    """The camera of one photo, where it came from, and (for a crop of a sensor assumed
+    4:3) how the photo was placed on it (module docstring).
 
     Raises:
-        InputError: naming the photo if it gives no focal length.
+        InputError: naming the photo if it gives no focal length, or the field its camera
+            came from if that camera is implausible (the check of ``camera.yaml``).
     """
     w, h = photo.width, photo.height
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
-    if photo.calibrated_focal_px is not None and photo.calibrated_focal_px > 0:
-        return (photo.calibrated_focal_px,
-                cx if photo.calibrated_cx is None else photo.calibrated_cx,
-                cy if photo.calibrated_cy is None else photo.calibrated_cy,
-                "calibrated (XMP drone-dji:CalibratedFocalLength)")
-    if photo.focal_35mm is not None:
-        return (photo.focal_35mm * math.hypot(w, h) / FILM_DIAGONAL_MM, cx, cy,
-                "35 mm equivalent focal length (EXIF FocalLengthIn35mmFilm)")
-    if photo.focal_length_mm is not None and photo.focal_plane_px_per_mm is not None:
-        return (photo.focal_length_mm * photo.focal_plane_px_per_mm, cx, cy,
-                "EXIF FocalLength and FocalPlaneXResolution")
-    raise InputError("no focal length (XMP drone-dji:CalibratedFocalLength, EXIF "
-                     "FocalLengthIn35mmFilm, or FocalLength with FocalPlaneXResolution)",
-                     path=photo.path)
+    crop = None
+    d = photo.dewarp
+    if d is not None:
+        undistorted = photo.dewarp_flag == 1
+        cam = PinholeCamera(w, h, d.fx, d.fy, w / 2.0 + d.cx_offset, h / 2.0 + d.cy_offset,
+                            distortion=(0.0,) * 5 if undistorted else d.distortion)
+        field = "drone-dji:DewarpData"
+        source = (f"DJI's calibration (XMP {field}{', ' + d.date if d.date else ''}"
+                  + (": the photo was undistorted in the camera (DewarpFlag 1)"
+                     if undistorted else ", with its distortion") + ")")
+    elif photo.calibrated_focal_px is not None:
+        cam = PinholeCamera(w, h, photo.calibrated_focal_px, photo.calibrated_focal_px,
+                            cx if photo.calibrated_cx is None else photo.calibrated_cx,
+                            cy if photo.calibrated_cy is None else photo.calibrated_cy)
+        field = "drone-dji:CalibratedFocalLength"
+        source = f"calibrated (XMP {field})"
+    else:
+        table = find_camera(photo.make, photo.model, w, photo.focal_length_mm)
+        f = None if table is None else table.focal_px(w, photo.focal_length_mm)
+        if table is not None and f is not None:
+            mm = photo.focal_length_mm or table.focal_range_mm[0]
+            field = "EXIF FocalLength" if photo.focal_length_mm else "the camera table"
+            source = (f"the camera table: {table.name}, {plain_number(round(mm, 3))} mm on "
+                      f"{plain_number(table.sensor_width_mm)} mm across {w} px")
+        elif photo.focal_35mm is not None:
+            field = "EXIF FocalLengthIn35mmFilm"
+            frame_w, frame_h = (w, w / SENSOR_ASPECT) if w / h > SENSOR_ASPECT + 1e-3 else (w, h)
+            if frame_h != h:
+                crop = (f"the {w}x{h} photo taken as a crop of a 4:3 sensor "
+                        f"{w}x{round(frame_h)} px (the 35 mm equivalent is the full frame's)")
+            f = photo.focal_35mm * math.hypot(frame_w, frame_h) / FILM_DIAGONAL_MM
+            source = "35 mm equivalent focal length (EXIF FocalLengthIn35mmFilm)"
+        elif photo.focal_length_mm is not None and photo.focal_plane_px_per_mm is not None:
+            f = photo.focal_length_mm * photo.focal_plane_px_per_mm
+            field = "EXIF FocalPlaneXResolution"
+            source = "EXIF FocalLength and FocalPlaneXResolution"
+        else:
+            raise InputError(f"no focal length: {photo.camera_name} {w}x{h} is not in the "
+                             "camera table and its metadata has none (XMP drone-dji:"
+                             "CalibratedFocalLength, EXIF FocalLengthIn35mmFilm, or "
+                             "FocalLength with FocalPlaneXResolution)", path=photo.path)
+        cam = PinholeCamera(w, h, f, f, cx, cy)
+    return check_camera(cam, photo.path, field), source, crop
 
 
-def flight_camera(photos: list[DjiPhoto]) -> tuple[PinholeCamera, str]:
-    """The one camera of all photos and where its focal length came from.
+def flight_camera(photos: list[DjiPhoto]) -> tuple[PinholeCamera, str, str | None]:
+    """The one camera of all photos, where it came from and the crop note.
 
     Raises:
         InputError: naming two photos of different cameras (model, size or intrinsics).
     """
-    def describe(p: DjiPhoto, f: float) -> str:
-        return f"{p.camera_name}, {p.width}x{p.height}, f {f:.1f} px"
+    def describe(p: DjiPhoto, c: PinholeCamera) -> str:
+        return f"{p.camera_name}, {p.width}x{p.height}, f {c.fx:.1f} px"
 
     first = photos[0]
-    f0, cx0, cy0, source = photo_intrinsics(first)
+    cam0, source, crop = photo_camera(first)
+    k0 = np.array([cam0.fx, cam0.fy, cam0.cx, cam0.cy, *cam0.distortion])
     for p in photos[1:]:
-        f, cx, cy, _ = photo_intrinsics(p)
+        cam, _, _ = photo_camera(p)
+        k = np.array([cam.fx, cam.fy, cam.cx, cam.cy, *cam.distortion])
         same = ((p.camera_name, p.width, p.height) == (first.camera_name, first.width,
                                                          first.height)
-                and np.allclose([f, cx, cy], [f0, cx0, cy0], rtol=1e-6, atol=1e-6))
+                and np.allclose(k, k0, rtol=1e-6, atol=1e-6))
         if not same:
             raise InputError(f"photos of more than one camera: {first.path} "
-                             f"({describe(first, f0)}) and this one ({describe(p, f)}); "
+                             f"({describe(first, cam0)}) and this one ({describe(p, cam)}); "
                              "import each camera's photos into its own flight folder",
                              path=p.path)
-    camera = PinholeCamera(first.width, first.height, f0, f0, cx0, cy0)
-    return camera, source
+    return cam0, source, crop
 
 
 def ground_origin(photo: DjiPhoto) -> Georef:
     """The photo's position at ground level: its altitude minus its relative altitude.
 
     Raises:
-        InputError: naming the photo if it has no ``RelativeAltitude``.
+        InputError: naming the photo if it has no ``RelativeAltitude``, or if the ground
+            would lie at an altitude out of range.
     """
     if photo.relative_altitude is None:
         raise InputError("no XMP drone-dji:RelativeAltitude to find the ground under the "
                          "first photo; give --origin LAT,LON,ALT", path=photo.path)
     assert photo.latitude is not None and photo.longitude is not None
     assert photo.altitude is not None
-    return Georef(photo.latitude, photo.longitude, photo.altitude - photo.relative_altitude)
-
-
-def _georef(latitude: float, longitude: float, altitude: float) -> Georef:
-    try:
-        return Georef(latitude, longitude, altitude)
-    except ValueError as e:
-        raise InputError(str(e), field="--origin") from None
+    lat, lon, alt = check_latlonalt(photo.latitude, photo.longitude,
+                                    photo.altitude - photo.relative_altitude, photo.path,
+                                    prefix="ground (AbsoluteAltitude - RelativeAltitude) ")
+    return Georef(lat, lon, alt)
 
 
 def _turbine(path: Path | None, georef: Georef) -> tuple[str | None, str | None]:
@@ -336,10 +670,7 @@ def _turbine(path: Path | None, georef: Georef) -> tuple[str | None, str | None]
 def _flight_position(georef: Georef, latitude: float, longitude: float
                      ) -> tuple[float, float]:
     """A turbine given by its position (``--turbine``), in the flight's frame."""
-    try:
-        Georef(latitude, longitude, georef.altitude)
-    except ValueError as e:
-        raise InputError(str(e), field="--turbine") from None
+    check_latlonalt(latitude, longitude, prefix="--turbine ")
     x, y, _ = georef.enu(latitude, longitude, georef.altitude)
     return float(x), float(y)
 
@@ -371,6 +702,7 @@ def link_photos(sources: list[Path], timestamps: np.ndarray, tmp_dir: Path,
     links = copies = 0
     for src, t in zip(sources, timestamps.tolist(), strict=True):
         dst = tmp_dir / (keyframe_stem(t) + ".jpg")
+        src = Path(os.path.realpath(src))  # link the photo, never a (relative) symbolic link
         try:
             os.link(src, dst)
             links += 1

@@ -218,7 +218,7 @@ def import_rosbag(bag_path: StrPath, out_dir: StrPath, options: RosbagOptions, *
         if turbine_text is not None:
             texts[TURBINE_FILE] = turbine_text
 
-        with flight_output_dir(out, overwrite) as tmp:
+        with flight_output_dir(out, overwrite, OVERWRITE_HINT) as tmp:
             for name, text in texts.items():
                 write_text_atomic(tmp / name, text, fsync=False)
             (tmp / IMAGE_DIR).mkdir()

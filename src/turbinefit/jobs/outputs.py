@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -92,6 +93,24 @@ def check_not_input(out: Path, inputs: Iterable[Path]) -> None:
         if resolved == s or s.is_relative_to(resolved) or resolved.is_relative_to(s):
             raise InputError(f"output folder would overwrite or nest inside the input {src}",
                              out)
+
+
+def recorded_path(path: str | Path, out_dir: str | Path) -> str:
+    """How an output folder ``out_dir`` records an input ``path`` (in ``summary.json``):
+    relative to ``out_dir`` itself, so that the record holds from any working directory
+    and when the two folders move together; read back by :func:`recorded_input`."""
+    try:
+        return os.path.relpath(os.path.abspath(path), os.path.abspath(out_dir))
+    except ValueError:  # another drive (Windows): no relative path
+        return os.path.abspath(path)
+
+
+def recorded_input(name: str, out_dir: Path) -> list[Path]:
+    """Where a path an output folder records may be, most likely first: relative to the
+    folder (as :func:`recorded_path` writes it; an absolute path stays as it is), then,
+    for records of older versions, relative to the working directory and to the folder's
+    parent."""
+    return [out_dir / name, Path(name), out_dir.parent / name]
 
 
 def flight_inputs(flight_dir: Path, config_path: Path | None) -> list[Path]:

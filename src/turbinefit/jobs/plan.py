@@ -46,7 +46,13 @@ from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.coverage import read_fit_output
-from turbinefit.jobs.outputs import OutputKind, check_not_input, plot_error, summary_json
+from turbinefit.jobs.outputs import (
+    OutputKind,
+    check_not_input,
+    plot_error,
+    recorded_path,
+    summary_json,
+)
 
 PLAN_OUTPUTS = OutputKind("plan", frozenset({
     "waypoints.csv", "waypoints_wgs84.csv", "waypoints.kml", "keyframes.txt", "turbine.yaml",
@@ -214,8 +220,8 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
     skipped = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.skipped.items() if n}
     summary = {
-        "turbinefit_version": __version__, "fit": str(fit_dir),
-        "flight": None if fit.flight_dir is None else str(fit.flight_dir),
+        "turbinefit_version": __version__, "fit": recorded_path(fit_dir, out_dir),
+        "flight": None if fit.flight_dir is None else recorded_path(fit.flight_dir, out_dir),
         "standoff_m": standoff, "max_gsd_mm_px": max_gsd_mm, "gsd_mm_px": round(plan.gsd_mm, 4),
         "camera": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy},
         "overlap": overlap, "max_gimbal_up_deg": max_gimbal_up_deg,

@@ -34,7 +34,13 @@ from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.fit import FITTED_TURBINE_COMMENT
 from turbinefit.jobs.init import InitSummary, estimate_turbine
-from turbinefit.jobs.outputs import TRACK_OUTPUTS, flight_inputs, plot_error, summary_json
+from turbinefit.jobs.outputs import (
+    TRACK_OUTPUTS,
+    flight_inputs,
+    plot_error,
+    recorded_path,
+    summary_json,
+)
 from turbinefit.jobs.sources import fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
 from turbinefit.solver.verdict import ImageEvidence, Signals, image_evidence, judge, measure
@@ -262,7 +268,9 @@ def track_folder(
         maps = buffered[k] if k < len(buffered) else source.keyframe(k)
         try:
             est = tracker.update(float(folder.timestamps[k]), poses[k], maps,
-                                 odometry=None if odometry is None else odometry[k])
+                                 odometry=None if odometry is None else odometry[k],
+                                 position_sigma=None if folder.position_sigma is None
+                                 else folder.position_sigma[k])
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3
@@ -277,7 +285,7 @@ def track_folder(
     turbine = tracker.turbine
     last = tracker.estimates[-1]
     summary = TrackSummary(
-        str(flight_dir), n, (source.camera.width, source.camera.height),
+        recorded_path(flight_dir, out), n, (source.camera.width, source.camera.height),
         (f"{source.description} (as each keyframe arrives; its latency includes detection)"
          if source.detects else source.description),
         cfg, LatencyStats.of(latency, cfg.window),

@@ -11,6 +11,14 @@ does). :func:`write_dji_photo` then writes one JPEG with Pillow: the EXIF block
 :mod:`xml.etree.ElementTree`: one ``rdf:Description`` whose ``drone-dji:`` attributes are
 the position, altitudes, gimbal and flight angles and (optionally) calibrated intrinsics,
 signed decimal strings as DJI writes them, with enough digits for 0.1 mm and 1e-6 deg.
+
+The structures real DJI files have are available as options, so that tests need no real
+photo: a preview image appended behind a Multi-Picture Format (MPF, APP2) segment
+(``preview=True``: Pillow then reads the file as ``MPO``, as it reads a Mavic's or an
+H20T's), XMP numbers without a sign (``signed=False``, as FLIR-cored payloads write them),
+no 35 mm equivalent (``focal_35mm=None``), a dashed ``DateTimeOriginal``, and any further
+``drone-dji`` fields (``extra_xmp``: ``DewarpData``, ``RtkFlag``, ``RtkStdLon`` ...,
+``ImageSource``).
 """
 
 from __future__ import annotations
@@ -95,7 +103,9 @@ def _dms(deg: float) -> tuple[float, float, float]:
 def dji_metadata(pose: DjiPose, *, model: str = "FC6310", focal_35mm: float | None = 24.0,
                  focal_mm: float | None = 8.8, camera: PinholeCamera | None = None,
                  gimbal_yaw: bool = True, xmp_position: bool = True,
-                 misspelt_longitude: bool = False) -> tuple[bytes, bytes]:
+                 misspelt_longitude: bool = False, signed: bool = True,
+                 dashed_time: bool = False, make: str = "DJI",
+                 extra_xmp: Mapping[str, str] | None = None) -> tuple[bytes, bytes]:
     """(EXIF, XMP) bytes of a DJI photo at ``pose``.
 
     Args:
@@ -106,14 +116,19 @@ def dji_metadata(pose: DjiPose, *, model: str = "FC6310", focal_35mm: float | No
         gimbal_yaw: False leaves ``GimbalYawDegree`` out (``FlightYawDegree`` carries it).
         xmp_position: False leaves the XMP position out (only the EXIF GPS block has it).
         misspelt_longitude: write ``GpsLongtitude`` as some firmware does.
+        signed: False writes XMP numbers without a ``+`` (``82.400002``).
+        dashed_time: ``DateTimeOriginal`` as ``YYYY-MM-DD HH:MM:SS``.
+        make: EXIF ``Make``.
+        extra_xmp: further ``drone-dji`` fields, written as given.
     """
     from PIL import ExifTags, Image
 
     exif = Image.Exif()
-    exif[ExifTags.Base.Make] = "DJI"
+    exif[ExifTags.Base.Make] = make
     exif[ExifTags.Base.Model] = model
     sub = exif.get_ifd(ExifTags.IFD.Exif)
-    sub[ExifTags.Base.DateTimeOriginal] = pose.time.strftime("%Y:%m:%d %H:%M:%S")
+    sub[ExifTags.Base.DateTimeOriginal] = pose.time.strftime(
+        "%Y-%m-%d %H:%M:%S" if dashed_time else "%Y:%m:%d %H:%M:%S")
     sub[ExifTags.Base.SubsecTimeOriginal] = f"{pose.time.microsecond:06d}"
     if focal_mm is not None:
         sub[ExifTags.Base.FocalLength] = focal_mm
@@ -146,17 +161,35 @@ def dji_metadata(pose: DjiPose, *, model: str = "FC6310", focal_35mm: float | No
         fields["CalibratedFocalLength"] = f"{camera.fx:.6f}"
         fields["CalibratedOpticalCenterX"] = f"{camera.cx:.6f}"
         fields["CalibratedOpticalCenterY"] = f"{camera.cy:.6f}"
+    if not signed:
+        fields = {k: v.lstrip("+") for k, v in fields.items()}
+    fields.update(extra_xmp or {})
     return exif.tobytes(), xmp_packet(fields)
 
 
+def dewarp_text(camera: PinholeCamera, date: str = "2024-01-01") -> str:
+    """``DewarpData`` of ``camera`` as DJI writes it: ``date;fx,fy,cx,cy,k1,k2,p1,p2,k3``
+    with the optical centre as an offset from the photo's centre (``W / 2``, ``H / 2``)."""
+    nums = [camera.fx, camera.fy, camera.cx - camera.width / 2.0,
+            camera.cy - camera.height / 2.0, *camera.distortion]
+    return date + ";" + ",".join(f"{v:.12f}" for v in nums)
+
+
 def write_dji_photo(path: StrPath, pixels: NDArray[np.uint8], pose: DjiPose, *,
-                    quality: int = 90, **metadata: object) -> Path:
+                    quality: int = 90, preview: bool = False, **metadata: object) -> Path:
     """Write ``pixels`` (H, W, 3 uint8) as a DJI-style JPEG at ``path`` (atomically), with
-    the metadata of :func:`dji_metadata` (``metadata``: its keyword options)."""
+    the metadata of :func:`dji_metadata` (``metadata``: its keyword options); ``preview``
+    appends a quarter-size preview image announced by an MPF APP2 segment, as most DJI
+    cameras do (Pillow's MPO writer makes exactly that structure)."""
     from PIL import Image
 
     exif, xmp = dji_metadata(pose, **metadata)  # type: ignore[arg-type]
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(pixels, dtype=np.uint8), "RGB").save(
-        buf, "JPEG", quality=quality, exif=exif, xmp=xmp)
+    im = Image.fromarray(np.ascontiguousarray(pixels, dtype=np.uint8), "RGB")
+    if preview:
+        small = im.resize((max(1, im.width // 4), max(1, im.height // 4)))
+        im.save(buf, "MPO", quality=quality, exif=exif, xmp=xmp, save_all=True,
+                append_images=[small])
+    else:
+        im.save(buf, "JPEG", quality=quality, exif=exif, xmp=xmp)
     return write_bytes_atomic(path, buf.getvalue(), fsync=False)

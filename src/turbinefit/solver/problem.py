@@ -4,13 +4,16 @@ Unknowns: every keyframe pose ``world_T_cam[k]`` (6 local coordinates each, see
 :meth:`turbinefit.geometry.se3.SE3.retract`) and theta (7). Cost (Ceres' convention)::
 
     E = 1/2 sum rho(s_image) + 1/2 sum |r_pair|^2 + 1/2 sum |r_prior|^2
+        + 1/2 sum |r_position|^2
 
 with, per projected model point or line sample, ``s`` the heat-map cost of
 :mod:`turbinefit.costs.heatmap_cost` (interp) or the squared whitened distance to a
 correspondence of :mod:`turbinefit.costs.correspondence` (corr), weighted lambda_P for the
 6 model points and lambda_L for the line samples; the pairwise term of
 :mod:`turbinefit.costs.pairwise` (lambda) between consecutive keyframes; and, with
-``gauge="gps"``, absolute position priors.
+``gauge="gps"``, absolute position priors; and, when the keyframes come with position
+standard deviations (``position_sigma``, an RTK flight's ``keyframes_sigma.csv``), a
+position prior per keyframe with them (:mod:`turbinefit.costs.position_prior`).
 
 Each image term gives, per point, the gradient ``g`` and a positive semi-definite Hessian
 model ``H`` of its cost w.r.t. the point's pixel (exact Gauss-Newton for corr, see
@@ -43,6 +46,7 @@ from turbinefit.costs.correspondence import (
 )
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
+from turbinefit.costs.position_prior import position_prior_residuals
 from turbinefit.costs.projection import project_points
 from turbinefit.costs.robust import RobustLoss
 from turbinefit.geometry.camera import PinholeCamera
@@ -82,6 +86,11 @@ class ProblemData(Protocol):
 
     def measurement_poses(self) -> SE3:
         """(N,) poses whose consecutive relative poses are the pairwise measurements."""
+
+    @property
+    def position_sigma(self) -> FloatArray | None:
+        """(N, 3) standard deviations [m] of the positions of ``world_T_cam`` (absolute
+        position priors), or None: no such priors."""
 
 
 @dataclass
@@ -214,6 +223,10 @@ class FitProblem:
         #: (E, 6, 6) per-edge square-root information L (C = L^T L), times sqrt(lambda).
         self._sqrt_info: FloatArray = pair_sqrt_information(config, self._measured_rel)
         self.prior_position = data.world_T_cam.translation[self.keyframes].copy()
+        sigma = data.position_sigma
+        #: (N, 3) standard deviations of the keyframes' position priors, or None
+        self.position_sigma = (None if sigma is None
+                               else np.asarray(sigma, dtype=np.float64)[self.keyframes].copy())
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
         self._line_index = np.repeat(np.arange(len(LINES)), n)
@@ -451,6 +464,13 @@ class FitProblem:
         if use_prior:
             rg = (poses.translation - self.prior_position) / cfg.gps_sigma
             terms["prior"] = 0.5 * float(np.sum(rg * rg))
+        use_position = self.position_sigma is not None and cfg.mode != "turbine"
+        if use_position:
+            assert self.position_sigma is not None
+            rx, Jx = position_prior_residuals(poses, self.prior_position, self.position_sigma,
+                                              with_jacobian)
+            terms["position"] = 0.5 * float(np.sum(rx * rx))
+            n_res += rx.size
         if self.prior is not None:
             dx = self.prior.delta(poses[0], theta)
             Hdx = self.prior.H @ dx
@@ -476,6 +496,11 @@ class FitProblem:
         if use_prior:
             D[:, [0, 1, 2], [0, 1, 2]] += 1.0 / cfg.gps_sigma**2
             g_p[:, :3] += rg / cfg.gps_sigma
+        if use_position:
+            assert Jx is not None
+            JxT = np.swapaxes(Jx, 1, 2)
+            D += JxT @ Jx
+            g_p += np.einsum("nij,ni->nj", Jx, rx)
         if self.prior is not None:  # gradient H dx + g, Hessian H (first-estimate Jacobians)
             gx = Hdx + self.prior.g
             D[0] += self.prior.H[:6, :6]

@@ -347,6 +347,21 @@ class Tracker:
         self._map_dtype = dtype
         return maps
 
+    def _check_sigma(self, position_sigma: NDArray[np.floating] | None) -> FloatArray | None:
+        """The keyframe's position standard deviations (3,), checked: given for every
+        keyframe or none (the first decides), positive and finite."""
+        k = len(self._times)
+        if position_sigma is None:
+            if self._window is not None and self._window.data.position_sigma is not None:
+                raise KeyframeError(k, "no position_sigma, but the keyframes before had one")
+            return None
+        if self._window is not None and self._window.data.position_sigma is None:
+            raise KeyframeError(k, "position_sigma given, but not for the keyframes before")
+        s = np.asarray(position_sigma, dtype=np.float64)
+        if s.shape != (3,) or not np.all(np.isfinite(s)) or not np.all(s > 0):
+            raise KeyframeError(k, "position_sigma must be 3 positive finite numbers")
+        return s
+
     def _fixed(self) -> NDArray[np.bool_]:
         assert self._window is not None
         fixed = np.zeros(len(self._window), dtype=bool)
@@ -394,7 +409,8 @@ class Tracker:
         return poses, prob, lin, iterations
 
     def update(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating], *,
-               odometry: SE3 | None = None) -> TrackEstimate:
+               odometry: SE3 | None = None,
+               position_sigma: NDArray[np.floating] | None = None) -> TrackEstimate:
         """Add one keyframe and refine; returns the estimate for it.
 
         Args:
@@ -408,6 +424,10 @@ class Tracker:
                 poses of consecutive odometry poses are then the pairwise measurements.
                 Given for every keyframe or for none; the first keyframe decides
                 ``pair_frame="auto"`` (estimated with odometry, measured without).
+            position_sigma: (3,) standard deviations [m] of ``world_T_cam``'s position
+                along the world axes (RTK): an absolute position prior on the keyframe
+                (:mod:`turbinefit.costs.position_prior`). Given for every keyframe or
+                for none.
 
         Raises:
             KeyframeError: on input that is out of order, of the wrong shape or not finite
@@ -415,6 +435,7 @@ class Tracker:
         """
         t0 = time.perf_counter()
         maps = self._check(float(timestamp), world_T_cam, heatmaps, odometry)
+        sigma = self._check_sigma(position_sigma)
         if self._has_odometry is None:  # the first keyframe resolves pair_frame="auto"
             self._has_odometry = odometry is not None
             self.config = dataclasses.replace(
@@ -427,7 +448,7 @@ class Tracker:
         w = self._window
         if w is None:
             self._window = TrackWindow.first(self.camera, index, float(timestamp), world_T_cam,
-                                             maps, world_T_cam, evidence, odometry)
+                                             maps, world_T_cam, evidence, odometry, sigma)
         else:
             last = len(w) - 1
             meas = w.data.measurement_poses()[last]
@@ -435,7 +456,7 @@ class Tracker:
                             world_T_cam if odometry is None else odometry,
                             self.config.fit.pair_frame)
             self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence,
-                                    odometry)
+                                    odometry, sigma)
 
         cfg = self.config
         stages = []

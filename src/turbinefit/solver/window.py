@@ -33,6 +33,8 @@ class Keyframes:
         heatmaps: the keyframes' heat-maps, (7, H, W) each.
         odometry: (N,) poses whose consecutive relative poses are the pairwise
             measurements; None: those of ``world_T_cam``.
+        position_sigma: (N, 3) standard deviations [m] of the positions of
+            ``world_T_cam`` (absolute position priors), or None.
     """
 
     camera: PinholeCamera
@@ -40,6 +42,7 @@ class Keyframes:
     world_T_cam: SE3
     heatmaps: HeatmapStack
     odometry: SE3 | None = None
+    position_sigma: FloatArray | None = None
 
     @property
     def num_keyframes(self) -> int:
@@ -73,28 +76,38 @@ class TrackWindow:
     @staticmethod
     def first(camera: PinholeCamera, index: int, timestamp: float, measured: SE3,
               heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
-              odometry: SE3 | None = None) -> TrackWindow:
+              odometry: SE3 | None = None,
+              position_sigma: FloatArray | None = None) -> TrackWindow:
         """A window of one keyframe: its measured pose, heat-maps, estimate and, if the
-        flight has odometry, its odometry pose."""
+        flight has them, its odometry pose and position standard deviations (3,)."""
         data = Keyframes(camera, np.array([timestamp], dtype=np.float64),
                          SE3(measured.wxyz_xyz[None].copy()), HeatmapStack([heatmaps]),
-                         None if odometry is None else SE3(odometry.wxyz_xyz[None].copy()))
+                         None if odometry is None else SE3(odometry.wxyz_xyz[None].copy()),
+                         None if position_sigma is None
+                         else np.asarray(position_sigma, dtype=np.float64).reshape(1, 3))
         return TrackWindow(np.array([index], dtype=np.int64), data,
                            SE3(world_T_cam.wxyz_xyz[None].copy()), np.array([evidence]))
 
     def append(self, index: int, timestamp: float, measured: SE3,
                heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
-               odometry: SE3 | None = None) -> TrackWindow:
-        """The window with one more keyframe at its end (``odometry`` given exactly when
-        the window's keyframes have it)."""
+               odometry: SE3 | None = None,
+               position_sigma: FloatArray | None = None) -> TrackWindow:
+        """The window with one more keyframe at its end (``odometry`` and
+        ``position_sigma`` given exactly when the window's keyframes have them)."""
         d = self.data
         if (odometry is None) != (d.odometry is None):
             raise ValueError("odometry must be given for every keyframe of a window or none")
+        if (position_sigma is None) != (d.position_sigma is None):
+            raise ValueError("position_sigma must be given for every keyframe of a window "
+                             "or none")
         maps = [d.heatmaps[k] for k in range(len(d.heatmaps))] + [heatmaps]
         data = Keyframes(d.camera, np.append(d.timestamps, timestamp),
                          _append(d.world_T_cam, measured), HeatmapStack(maps),
                          None if d.odometry is None or odometry is None
-                         else _append(d.odometry, odometry))
+                         else _append(d.odometry, odometry),
+                         None if d.position_sigma is None or position_sigma is None
+                         else np.vstack([d.position_sigma,
+                                         np.asarray(position_sigma, np.float64).reshape(1, 3)]))
         return TrackWindow(np.append(self.index, index), data,
                            _append(self.world_T_cam, world_T_cam),
                            np.append(self.evidence, evidence))
@@ -104,7 +117,8 @@ class TrackWindow:
         d = self.data
         data = Keyframes(d.camera, d.timestamps[1:], d.world_T_cam[1:],
                          d.heatmaps.subset(np.arange(1, len(d.heatmaps))),
-                         None if d.odometry is None else d.odometry[1:])
+                         None if d.odometry is None else d.odometry[1:],
+                         None if d.position_sigma is None else d.position_sigma[1:])
         return TrackWindow(self.index[1:], data, self.world_T_cam[1:], self.evidence[1:])
 
     def with_estimate(self, world_T_cam: SE3) -> TrackWindow:
