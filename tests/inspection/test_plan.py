@@ -169,3 +169,25 @@ def test_the_check_catches_a_broken_path(surface: TurbineSurface, plan, change: 
     with pytest.raises(PlanError, match=words) as info:
         check_plan(broken, surface, options)
     assert info.value.option == option
+
+
+def test_a_replan_leaves_out_what_was_done_and_starts_where_the_drone_is(
+        surface: TurbineSurface, plan) -> None:
+    # in flight: the stations photographed are not flown again, and the path starts at the
+    # drone's position; the same check holds from there
+    done_stations = {(w.part, w.side, round(w.span, 6)) for w in plan.photos[:40]}
+    here = plan.photos[39].position
+
+    def done(part: int, side: int, span: float) -> bool:
+        return (part, side, round(span, 6)) in done_stations
+
+    again = plan_path(surface, CAM, PlanOptions(8.0, 4.2), done=done, start=here)
+    assert np.allclose(again.waypoints[0].position, here) and not again.waypoints[0].photo
+    assert len(again.photos) == len(plan.photos) - 40
+    assert not any(done(w.part, w.side, w.span) for w in again.photos)
+    assert sum(again.skipped.values()) == sum(plan.skipped.values())
+    assert again.min_rotor_clearance >= 8.0
+    # everything done: an empty plan, not an error
+    empty = plan_path(surface, CAM, PlanOptions(8.0, 4.2),
+                      done=lambda *_: True, start=here)
+    assert empty.photos == []

@@ -38,9 +38,11 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.inspection.clearance import (
@@ -226,10 +228,17 @@ class _Clearance:
 
 
 def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptions,
-              samples: SolidSamples | None = None) -> Plan:
+              samples: SolidSamples | None = None, *,
+              done: Callable[[int, int, float], bool] | None = None,
+              start: ArrayLike | None = None) -> Plan:
     """Waypoints covering each blade's sides and the tower (see the module docstring),
     checked by :func:`check_plan` before they are returned. ``samples``: the surface's
     :func:`~turbinefit.inspection.clearance.solid_samples` to reuse (made if not given).
+
+    Replanning in flight: ``done(part, side, span)`` says which stations were already
+    photographed (they are left out, and not counted as skipped); ``start``, the camera's
+    position now, is where the path starts (its first waypoint, a transit point, and the
+    legs from it are routed and checked like any other).
 
     Raises:
         PlanError: the camera cannot reach ``options.max_gsd_mm`` at the stand-off, the
@@ -347,11 +356,20 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         plan.stations[(TOWER, face)] = len(sw)
         plan.skipped[(TOWER, face)] = len(heights) - len(sw)
 
+    if done is not None:
+        for key, sw in sweeps.items():
+            left = [w for w in sw if not done(w.part, w.side, w.span)]
+            plan.stations[key] -= len(sw) - len(left)
+            sweeps[key] = left
     order = [(i, k) for i in range(3) for k in UPWIND_SIDES]
     order += [(i, k) for i in range(3) for k in DOWNWIND_SIDES]
     order += [(TOWER, k) for k in TOWER_ORDER]
     router = _Router(s, clear, dp, tp, opt.min_altitude)
     path: list[Waypoint] = []
+    if start is not None:
+        p0 = np.asarray(start, dtype=np.float64).reshape(3)
+        path.append(Waypoint(p0, math.atan2(float(s.hub[1] - p0[1]), float(s.hub[0] - p0[0])),
+                             0.0))
     for key in order:
         sw = sweeps[key]
         if not sw:
@@ -369,7 +387,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                 path += legs
             path.append(w)
     plan.waypoints = path
-    if not plan.photos:
+    if not plan.photos and done is None:
         raise PlanError(f"no station has a clear view at a stand-off of {d:g} m within the "
                         f"gimbal's {opt.max_gimbal_up_deg:g} deg upward pitch", "max_gimbal_up_deg")
     t0 = time.perf_counter()
