@@ -15,15 +15,23 @@ the ``leading_edge`` or ``trailing_edge`` it is the edge itself, so its chord is
 ``-1``. The section is the blade's as built, pitch and twist included (the chord line
 turns with them). ``size_m`` is the defect's size across (a patch's or burn's diameter,
 a crack's length).
+
+:func:`defect_point` places a defect on a :class:`~turbinefit.inspection.surface.TurbineSurface`.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 from turbinefit.errors import InputError
-from turbinefit.inspection.surface import BLADE_SIDES, PARTS
+from turbinefit.inspection.surface import BLADE_SIDES, PARTS, TurbineSurface
 from turbinefit.turbine.model import TurbineParams
+
+FloatArray = NDArray[np.float64]
 
 #: Kinds of defects, in the order of their codes in a painted defect.
 DEFECT_KINDS = ("erosion", "crack", "burn")
@@ -102,3 +110,21 @@ def check_defects(defects: list[Defect], turbine: TurbineParams, path: object | 
         seen[d.defect] = i
 
 
+
+
+def defect_point(surface: TurbineSurface, d: Defect) -> tuple[FloatArray, FloatArray]:
+    """The centre of defect ``d`` on ``surface`` (its blades' pitch and twist those the
+    defect's blade was built with) and the unit direction out of the surface there: the
+    point on the section's outline at chord position ``d.chord`` on ``d.side``'s face
+    (on an edge, the edge), and the outline's normal (on an edge, along the chord)."""
+    k = BLADE_PARTS.index(d.part)
+    bl = surface.blades[k]
+    tw = float(surface.twist(d.span_m))
+    chord = math.cos(tw) * bl.chord + math.sin(tw) * bl.normal
+    normal = math.cos(tw) * bl.normal - math.sin(tw) * bl.chord
+    A, B = (float(v[0]) for v in surface.blade_section(np.array([d.span_m])))
+    face = {"pressure_side": 1.0, "suction_side": -1.0}.get(d.side, 0.0)
+    x, y = d.chord * A, face * B * math.sqrt(max(1.0 - d.chord * d.chord, 0.0))
+    point = bl.root + d.span_m * bl.axis + x * chord + y * normal
+    out = x / (A * A) * chord + y / (B * B) * normal  # the ellipse's normal
+    return point, out / np.linalg.norm(out)

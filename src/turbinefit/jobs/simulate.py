@@ -201,18 +201,19 @@ def check_path_clear(traj: TumTrajectory, turbine: TurbineParams, geometry: Turb
     surface = TurbineSurface(turbine, geometry)
     far = 1000.0
     inside = np.ones(len(p), dtype=bool)
-    part = np.full(len(p), -1)
+    parts = []
     for u in _INSIDE_DIRECTIONS:
         for d in (u, -u):
             hits = surface.cast_rays(p - far * d, np.broadcast_to(d, p.shape))
             with np.errstate(invalid="ignore"):
                 inside &= hits.distance < far
-            part = np.where(part < 0, hits.part, part)
+            parts.append(hits.part)
     if np.any(inside):
         k = int(np.argmax(inside))
+        part = int(np.bincount(np.array([q[k] for q in parts])).argmax())  # most rays'
         raise InputError(f"pose at ({p[k, 0]:.1f}, {p[k, 1]:.1f}, {p[k, 2]:.1f}) m is inside "
-                         f"the simulated turbine's {PARTS[int(part[k])]} (the turbine of "
-                         "--seed and --turbine)", path=path, line=int(traj.lines[k]))
+                         f"the simulated turbine ({PARTS[part]}; the turbine of --seed and "
+                         "--turbine)", path=path, line=int(traj.lines[k]))
 
 
 #: Directions of :func:`check_path_clear`'s rays (oblique: none along an axis of the
