@@ -92,6 +92,15 @@ def test_path_with_vio_odometry(plan_keyframes: Path, tmp_path: Path,
     _, path = poses_array(plan_keyframes)
     np.testing.assert_allclose(odo[0], path[0], atol=1e-8)  # chained from the first pose
     assert not np.allclose(odo[-1], path[-1], atol=1e-3)
+    _, kf = poses_array(tmp_path / "f" / "keyframes.txt")
+    np.testing.assert_array_equal(kf, odo)  # VIO alone: keyframes are the odometry
+    rc, _, err = run(capsys, "simulate", str(tmp_path / "g"), "--path", str(plan_keyframes),
+                     "--odometry", "vio", "--gnss", "rtk", *SMALL)
+    assert rc == 0, err
+    _, odo_g = poses_array(tmp_path / "g" / "odometry.txt")
+    _, kf_g = poses_array(tmp_path / "g" / "keyframes.txt")
+    np.testing.assert_allclose(odo_g, odo, atol=1e-8)  # the same VIO
+    assert np.abs(kf_g[:, 4:] - path[:, 4:]).max() < 0.2  # RTK keyframes, no VIO drift
 
 
 def _defects_and_path(tmp: Path) -> tuple[Path, Path]:

@@ -77,7 +77,8 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     s.add_argument("--gnss", choices=list(GNSS_MODELS), default=None,
                    help="record the poses with this GNSS error model (standard: metre-level, "
                    "rtk: centimetre-level; both with a compass yaw error of a few degrees; "
-                   "docs/mission.md) instead of the --drift-m/--drift-deg drift")
+                   "docs/mission.md) instead of the --drift-m/--drift-deg drift (with "
+                   "--odometry vio: GNSS keyframes, VIO odometry.txt)")
     defects = s.add_mutually_exclusive_group()
     defects.add_argument("--defects", type=whole_nonneg, default=0, metavar="N",
                          help="draw N known defects on the blades with the seed "

@@ -115,7 +115,7 @@ class SimConfig:
         gnss: the poses' error model, ``standard`` or ``rtk``
             (:data:`~turbinefit.sim.gnss.GNSS_MODELS`), instead of the drift of
             ``drift_pos_m`` / ``drift_rot_deg``; None: that drift. With ``vio`` odometry
-            it is not used.
+            keyframes.txt holds the GNSS poses and odometry.txt the VIO.
         defects: number of known defects drawn on the blades
             (:func:`~turbinefit.sim.defects.draw_defects`).
         surface_detail: photos show the blades' and tower's surface as an inspection's
@@ -355,14 +355,14 @@ def simulate(cfg: SimConfig | None = None, path: FlightPath | None = None,
                          cfg.render_config(), rng["heatmaps"], distractors, progress=progress,
                          out=out)
     init_poses = drift_poses(gt_poses, rng["drift"], cfg.drift_pos_m, cfg.drift_rot_deg)
-    gnss = None
-    if cfg.gnss is not None and cfg.odometry != "vio":
-        gnss = gnss_poses(gt_poses, timestamps, gnss_model(cfg.gnss), rng["gnss"])
-        init_poses = gnss.world_T_cam
     odometry = None
     if cfg.odometry == "vio":
         odometry = body_odometry(gt_poses, rng["odometry"], cfg.odometry_noise)
         init_poses = odometry
+    gnss = None
+    if cfg.gnss is not None:  # with vio: GNSS keyframes, VIO pairwise motions
+        gnss = gnss_poses(gt_poses, timestamps, gnss_model(cfg.gnss), rng["gnss"])
+        init_poses = gnss.world_T_cam
     init_turbine = perturb_turbine(gt_turbine, cfg.turbine_sigma, rng["turbine_noise"])
     flight = Flight(
         camera=camera,
