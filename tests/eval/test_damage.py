@@ -3,6 +3,8 @@ the squarest box's side, and summaries over nothing."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from turbinefit.eval.damage import score_damage
@@ -60,3 +62,16 @@ def test_a_box_off_the_turbine_and_nothing_to_score() -> None:
     assert s["defects_seen"] == 0
     assert all(s[k] is None for k in ("right_part", "span_error_median_m", "span_error_p95_m",
                                       "box_right_part"))
+
+
+def test_score_from_files(tmp_path: Path) -> None:
+    from turbinefit.eval.damage import score_damage_files
+    from turbinefit.io.defects import format_defects_csv
+
+    (tmp_path / "t.csv").write_text(format_defects_csv(TRUTH))
+    (tmp_path / "d.csv").write_text(
+        "photo,keyframe,class,xmin,ymin,xmax,ymax,part,side,span_m,distance_m,chord,defect\n"
+        "a.png,0,erosion,0,0,10,10,blade_A,leading_edge,40.2,9.0,0.9,D1\n")
+    s = score_damage_files(tmp_path / "d.csv", tmp_path / "t.csv").summary()
+    assert (s["defects_seen"], s["right_part_and_side"]) == (1, 1.0)
+    assert s["span_error_median_m"] == pytest.approx(0.2)
