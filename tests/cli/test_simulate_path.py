@@ -244,3 +244,15 @@ def test_camera_file_and_photo_scale(tmp_path: Path, capsys: pytest.CaptureFixtu
         assert im.size == (200, 150)
     hm = np.load(next((out / "heatmaps").iterdir()))
     assert hm.shape == (7, 150, 200)
+
+
+def test_drawn_defects_and_the_blades_as_drawn(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, err = run(capsys, "simulate", str(tmp_path / "f"), "--keyframes", "3",
+                       "--defects", "5", "--seed", str(SEED), "--width", "64", "--height", "48")
+    assert rc == 0, err
+    sim = yaml.safe_load((tmp_path / "f" / "simulation.yaml").read_text())
+    assert out.splitlines()[-1] == (f"blades drawn at coverage --blade-pitch "
+                                    f"{sim['blade_pitch_deg']:g} --blade-twist -14")
+    rows = (tmp_path / "f" / "defects_groundtruth.csv").read_text().splitlines()
+    assert len(rows) == 6 and not (tmp_path / "f" / "defect_boxes.csv").exists()  # no photos

@@ -185,4 +185,10 @@ def run(args: argparse.Namespace) -> int:
 
         n = len(read_tum(out / "keyframes.txt")[0])
         print(f"wrote {n} keyframes to {out}")
+        import yaml
+
+        sim = yaml.safe_load((out / "simulation.yaml").read_text(encoding="utf-8"))
+        if "blade_pitch_deg" in sim:  # coverage of these photos needs the blades as drawn
+            print(f"blades drawn at coverage --blade-pitch {sim['blade_pitch_deg']:g} "
+                  f"--blade-twist {sim['blade_twist_deg']:g}")
     return 0
