@@ -34,6 +34,9 @@ from faults import (
     write,
 )
 
+from turbinefit.sim.scenario import SimConfig, true_turbine
+from turbinefit.turbine.model import model_points
+
 # ------------------------------------------------------------------ the cases
 
 CAM, KF, TURB = r"camera\.yaml", r"keyframes\.txt", r"turbine\.yaml"
@@ -41,6 +44,9 @@ ODO, GT, GTT = r"odometry\.txt", r"groundtruth\.txt", r"turbine_groundtruth\.yam
 HM = r"heatmaps/2\.000000\.npy"
 PHOTO = r"images/2\.000000\.png"
 BIG = 300 << 20  # a sparse file above every text limit
+#: The hub of the true turbine of ``simulate``'s default seed (a pose inside the turbine).
+_HUB = " ".join(f"{v:.3f}" for v in model_points(
+    true_turbine(SimConfig()).to_vector())[0][2])
 OK_ODOMETRY: Mutation = lambda f: shutil.copy(f / "keyframes.txt", f / "odometry.txt")  # noqa: E731
 
 
@@ -474,6 +480,35 @@ def _cases() -> list[Case]:
     add("coverage-gsd-inf", cmd(*cov, "--gsd", "inf"), None, r"--gsd", usage=True)
     add("coverage-blade-pitch", cmd(*cov, "--blade-pitch", "-91"), None,
         r"blade angle -91.0 deg", usage=True)
+    # -- simulate --path, --defects-file, --photo-scale; coverage --truth
+    sim_path = ("simulate", "{w}/out", "--quiet", "--path", "{w}/flight/p.txt")
+    pose = "0 0 -120 60 0 0 0 1\n"
+    add("simulate-path-nan", cmd(*sim_path), write("p.txt", pose + "1 0 -120 nan 0 0 0 1\n"),
+        r"p\.txt:2", r"non-finite value 'nan'")
+    add("simulate-path-inside-turbine", cmd(*sim_path),
+        write("p.txt", pose + f"1 {_HUB} 0 0 0 1\n"), r"p\.txt:2",
+        r"inside the simulated turbine")
+    add("simulate-path-underground", cmd(*sim_path), write("p.txt", pose + "1 0 -120 -2 0 0 0 1\n"),
+        r"p\.txt:2", r"below the ground")
+    add("simulate-path-fifo", cmd(*sim_path), fifo("p.txt"), r"p\.txt", r"named pipe",
+        hang=True)
+    sim_defects = ("simulate", "{w}/out", "--quiet", "--defects-file", "{w}/flight/d.csv")
+    head = "defect,part,side,span_m,chord,size_m,kind\n"
+    for name, row, pat in (
+            ("span", "D1,blade_A,pressure_side,64,0,0.2,crack", r"d\.csv:2 \[span_m\].*blade"),
+            ("chord", "D1,blade_A,pressure_side,30,-1.5,0.2,crack", r"d\.csv:2 \[chord\]"),
+            ("blade", "D1,blade_Q,pressure_side,30,0,0.2,crack", r"d\.csv:2 \[part\]"),
+            ("side", "D1,blade_A,root,30,0,0.2,crack", r"d\.csv:2 \[side\]"),
+            ("size", "D1,blade_A,pressure_side,30,0,inf,crack", r"d\.csv:2 \[size_m\]")):
+        add(f"simulate-defect-{name}", cmd(*sim_defects), write("d.csv", head + row + "\n"),
+            pat)
+    add("simulate-photo-scale-0", cmd("simulate", "{w}/out", "--photo-scale", "0"), None,
+        r"--photo-scale", r"photo scale 0\.0 is out of range", usage=True)
+    add("coverage-truth-without-damage", cmd(*cov, "--truth", "{w}/flight/d.csv"),
+        write("d.csv", head), r"--truth", r"needs --damage")
+    add("coverage-damage-defect-column", cmd(*cov, "--damage", "{w}/flight/b.csv"),
+        write("b.csv", "2.000000.png,64,48,crack,1,2,3,4,D1\n2.000000.png,64,48,c,1,2,3,4\n"),
+        r"b\.csv:2", r"8 columns, expected 9")
     # -- init: numbers of the prior
     init = ("init", "{w}/flight", "--quiet")
     for opts, pat in ((("--near", "nan,0"), r"--near: X must be a number, got nan"),

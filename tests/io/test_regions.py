@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from turbinefit.errors import InputError
 from turbinefit.io.images import write_png
-from turbinefit.io.regions import decode_rle, read_coco_boxes
+from turbinefit.io.regions import decode_rle, read_box_csv, read_coco_boxes
 
 
 def _mask() -> np.ndarray:
@@ -56,3 +57,34 @@ def test_read_coco_boxes_keeps_boxes_polygons_and_rles_apart(tmp_path: Path) -> 
     assert lab.polygons == (("blade", tuple(tri)),)
     assert [c for c, _ in lab.rles] == ["blade"] and lab.classes == ("turbine", "blade")
     assert not lab.outlined  # a box among them: its skeleton is not the turbine's
+
+
+def _box_csv(tmp_path: Path, text: str) -> Path:
+    (tmp_path / "a.png").write_bytes(b"")
+    (tmp_path / "b.csv").write_text(text)
+    return tmp_path / "b.csv"
+
+
+def test_box_csv_with_and_without_the_defect_column(tmp_path: Path) -> None:
+    plain = _box_csv(tmp_path, "a.png,64,48,crack,1,2,3,4\n")
+    (lab,) = read_box_csv(plain, tmp_path)
+    assert lab.boxes == (("crack", (1.0, 2.0, 3.0, 4.0)),) and lab.defects == ()
+    named = _box_csv(tmp_path, "filename,width,height,class,xmin,ymin,xmax,ymax,defect\n"
+                     "a.png,64,48,crack,1,2,3,4,D7\na.png,64,48,burn,5,6,7,8,\n")
+    (lab,) = read_box_csv(named, tmp_path)
+    assert lab.defects == ("D7", "") and len(lab.boxes) == 2
+    headerless = _box_csv(tmp_path, "a.png,64,48,crack,1,2,3,4,D7\n")
+    assert read_box_csv(headerless, tmp_path)[0].defects == ("D7",)
+
+
+@pytest.mark.parametrize(("text", "line", "words"), [
+    ("a.png,64,48,crack,1,2,3,4,D7\na.png,64,48,crack,1,2,3,4\n", 2, "8 columns, expected 9"),
+    ("filename,width,height,class,xmin,ymin,xmax,ymax\na.png,64,48,c,1,2,3,4,D\n", 2,
+     "9 columns, expected 8"),
+    ("filename,width,height,class,xmin,ymin,xmax,ymax,name\n", 1, "unknown columns"),
+    ("a.png,64,48,crack,1,2,3,4,D7,x\n", 1, "10 columns"),
+])
+def test_box_csv_defect_column_errors(tmp_path: Path, text: str, line: int, words: str) -> None:
+    p = _box_csv(tmp_path, text)
+    with pytest.raises(InputError, match=rf"b\.csv:{line}: .*{words}"):
+        read_box_csv(p, tmp_path)

@@ -16,7 +16,8 @@ trailing edge, suction side; tower: front, right, back, left), the distance and
 the ground sampling distance (mm per pixel) with the photos' camera. Writes
 coverage.csv, sides.csv (best resolution per side and span), summary.json and
 coverage.png; with --damage, damage.csv: where each box drawn on a photo (a
-damage mark) lies on the turbine - part, side, span range and distance.
+damage mark) lies on the turbine - part, side, span range, distance and chord;
+with --truth too, how well the boxes were located against the known defects.
 Details: docs/inspection.md."""
 
 
@@ -49,6 +50,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     p.add_argument("--damage-photos", type=Path, default=None, metavar="DIR",
                    help="the folder of the photos --damage names (default: the flight's "
                    "images/; originals that import dji linked are found too)")
+    p.add_argument("--truth", type=Path, default=None, metavar="DEFECTS_CSV",
+                   help="the known defects the --damage boxes show (simulate's "
+                   "defects_groundtruth.csv; the boxes name them in a defect column): "
+                   "score where they were located (summary.json's damage_score)")
     p.add_argument("--no-plots", action="store_true", help="skip coverage.png")
     p.add_argument("--overwrite", action="store_true", help="replace OUT_DIR's outputs")
     p.add_argument("--quiet", action="store_true", help="print nothing")
@@ -68,7 +73,8 @@ def run(args: argparse.Namespace) -> int:
                              max_gsd_mm=args.gsd, blade_pitch=math.radians(args.blade_pitch),
                              blade_twist=math.radians(args.blade_twist),
                              damage=args.damage, damage_photos=args.damage_photos,
-                             plots=not args.no_plots, overwrite=args.overwrite)
+                             truth=args.truth, plots=not args.no_plots,
+                             overwrite=args.overwrite)
     if args.quiet:
         return 0
     s = report.summary
@@ -89,5 +95,22 @@ def run(args: argparse.Namespace) -> int:
                  + (f"{loc.span_from_m:.1f}-{loc.span_to_m:.1f} m" if loc.span_from_m is not None
                     else "") + f" ({100 * loc.on_part:.0f} % of the box)")
         print(f"damage {d.photo} {d.label}: {where}")
+    if report.damage_score is not None:
+        print(damage_score_line(report.damage_score.summary()))
     print(f"wrote {args.out}")
     return 0
+
+
+def damage_score_line(s: dict[str, Any]) -> str:
+    """One line of :meth:`turbinefit.eval.damage.DamageScore.summary`'s figures."""
+    def pct(v: float | None) -> str:
+        return "-" if v is None else f"{100 * v:.0f} %"
+
+    def m(v: float | None, unit: str = " m") -> str:
+        return "-" if v is None else f"{v:.2f}{unit}"
+
+    return (f"damage score: {s['defects_seen']} of {s['defects']} defects seen in "
+            f"{s['boxes']} boxes; right blade {pct(s['right_part'])}, right blade and side "
+            f"{pct(s['right_part_and_side'])}; span error median {m(s['span_error_median_m'])}"
+            f", 95th percentile {m(s['span_error_p95_m'])}; chord error median "
+            f"{m(s['chord_error_median'], '')}")

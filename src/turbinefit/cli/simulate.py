@@ -9,7 +9,16 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from turbinefit.cli.common import DefaultsFormatter, number, positive_int, seed
+from turbinefit.cli.common import (
+    DefaultsFormatter,
+    number,
+    option,
+    positive_int,
+    seed,
+    whole_nonneg,
+)
+from turbinefit.jobs.simulate import PHOTO_SCALE
+from turbinefit.sim.gnss import GNSS_MODELS
 
 if TYPE_CHECKING:
     from turbinefit.sim.scenario import SimConfig
@@ -56,6 +65,27 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     s.add_argument("--images", action="store_true",
                    help="also render a photo of every keyframe into images/ (procedural "
                    "scene from the seed)")
+    s.add_argument("--path", type=Path, default=None, metavar="POSES_TXT",
+                   help="fly these ground-truth camera poses (TUM world_T_cam, timestamps "
+                   "from the file; e.g. plan's keyframes.txt) instead of the simulated "
+                   "inspection; --keyframes is then their number")
+    s.add_argument("--camera", type=Path, default=None, metavar="CAMERA_YAML",
+                   help="the photos' camera (camera_info YAML) instead of --width/--height")
+    s.add_argument("--photo-scale", type=option(PHOTO_SCALE), default=1.0, metavar="F",
+                   help="photos (and camera.yaml) at this fraction of the camera's size, "
+                   f"{PHOTO_SCALE.range_text()}")
+    s.add_argument("--gnss", choices=list(GNSS_MODELS), default=None,
+                   help="record the poses with this GNSS error model (standard: metre-level, "
+                   "rtk: centimetre-level; both with a compass yaw error of a few degrees; "
+                   "docs/mission.md) instead of the --drift-m/--drift-deg drift (with "
+                   "--odometry vio: GNSS keyframes, VIO odometry.txt)")
+    defects = s.add_mutually_exclusive_group()
+    defects.add_argument("--defects", type=whole_nonneg, default=0, metavar="N",
+                         help="draw N known defects on the blades with the seed "
+                         "(defects_groundtruth.csv; with --images defect_boxes.csv)")
+    defects.add_argument("--defects-file", type=Path, default=None, metavar="DEFECTS_CSV",
+                         help="paint these defects (defect,part,side,span_m,chord,size_m"
+                         "[,kind]) instead")
     s.add_argument("--list-presets", action="store_true", help="list presets and exit")
     s.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it exists (only if it holds nothing but a flight)")
@@ -102,6 +132,10 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
                                                     pixel_sigma=args.heatmap_noise)
     if args.second_turbine:
         over["second_turbine"] = True
+    if args.gnss is not None:
+        over["gnss"] = args.gnss
+    if args.defects:
+        over["defects"] = args.defects
     for key in ("drift_pos_m", "drift_rot_deg"):
         if key in over and not (math.isfinite(over[key]) and over[key] >= 0):
             raise InputError(f"must be a non-negative number, got {over[key]}", field=key)
@@ -138,8 +172,23 @@ def run(args: argparse.Namespace) -> int:
     if args.out_dir is None:
         raise InputError("OUT_DIR is required", field="simulate")
     cfg = sim_config(args)
+    camera = None
+    if args.camera is not None:
+        from turbinefit.io.camera_yaml import read_camera_yaml
+
+        camera = read_camera_yaml(args.camera)
     out = simulate_folder(args.out_dir, cfg, overwrite=args.overwrite, progress=not args.quiet,
-                          images=args.images)
+                          images=args.images, camera=camera, photo_scale=args.photo_scale,
+                          path=args.path, defects_file=args.defects_file)
     if not args.quiet:
-        print(f"wrote {cfg.n_keyframes} keyframes to {out}")
+        from turbinefit.io.tum import read_tum
+
+        n = len(read_tum(out / "keyframes.txt")[0])
+        print(f"wrote {n} keyframes to {out}")
+        import yaml
+
+        sim = yaml.safe_load((out / "simulation.yaml").read_text(encoding="utf-8"))
+        if "blade_pitch_deg" in sim:  # coverage of these photos needs the blades as drawn
+            print(f"blades drawn at coverage --blade-pitch {sim['blade_pitch_deg']:g} "
+                  f"--blade-twist {sim['blade_twist_deg']:g}")
     return 0

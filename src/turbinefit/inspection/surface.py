@@ -221,6 +221,19 @@ class TurbineSurface:
         angle = np.arctan2(to_camera @ bl.normal, to_camera @ bl.chord)
         return sector(angle - self.twist(span) if self.shape.blade_twist else angle)
 
+    def chord_position(self, blade: int, world_p: ArrayLike) -> FloatArray:
+        """Where points ``world_p`` (..., 3) [m] on blade ``blade`` (0 = A) lie along their
+        section's chord line: -1 at the trailing edge, 0 mid-chord, 1 at the leading edge
+        (the projection on the chord, pitch and twist included, over the half chord;
+        clipped to [-1, 1])."""
+        bl = self.blades[blade]
+        v = np.asarray(world_p, dtype=np.float64) - bl.root
+        s = v @ bl.axis
+        tw = self.twist(s)
+        along = np.cos(tw) * (v @ bl.chord) + np.sin(tw) * (v @ bl.normal)
+        A, _ = self.blade_section(s)
+        return np.clip(along / np.maximum(A, 1e-9), -1.0, 1.0)
+
     def tower_face(self, to_camera: FloatArray) -> IntArray:
         """Index into :data:`TOWER_FACES` of the tower face seen along ``to_camera`` (..., 3)."""
         return sector(np.arctan2(to_camera @ self.tower_right, to_camera @ self.heading_dir))
@@ -418,6 +431,9 @@ class BoxLocation:
         distance_m: median camera distance of those samples [m].
         on_part: fraction of the box's samples on that part (the rest: other parts or
             background).
+        chord: on a blade, the median position of those samples along the chord line
+            (:meth:`TurbineSurface.chord_position`: -1 trailing edge .. 1 leading edge);
+            else None.
     """
 
     part: str | None
@@ -427,6 +443,7 @@ class BoxLocation:
     span_to_m: float | None
     distance_m: float | None
     on_part: float
+    chord: float | None = None
 
 
 #: Sample pixels a side of a box in :func:`locate_box` (at most; one per pixel).
@@ -439,14 +456,14 @@ def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
     labelling tools draw them) on the photo taken from ``world_T_cam`` covers: a grid of up
     to :data:`BOX_SAMPLES` x :data:`BOX_SAMPLES` pixel centres inside it looked up
     (:func:`lookup_pixels`), the part most of them hit, and that part's samples' side (the
-    most frequent), median span, span range and distance."""
+    most frequent), median span, span range, distance and, on a blade, chord position."""
     x0, y0, x1, y1 = box
     nu = max(1, min(BOX_SAMPLES, math.ceil(x1 - x0)))
     nv = max(1, min(BOX_SAMPLES, math.ceil(y1 - y0)))
     us = x0 + (np.arange(nu) + 0.5) * (x1 - x0) / nu - 0.5  # pixel centres: edges - 0.5
     vs = y0 + (np.arange(nv) + 0.5) * (y1 - y0) / nv - 0.5
     uv = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2)
-    hits, _ = lookup_pixels(surface, camera, world_T_cam, uv)
+    hits, points = lookup_pixels(surface, camera, world_T_cam, uv)
     seen = hits.part[hits.part >= 0]
     if seen.size == 0:
         return BoxLocation(None, None, None, None, None, None, 0.0)
@@ -458,8 +475,11 @@ def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
         side = names[int(np.bincount(hits.side[on]).argmax())]
     spans = hits.span[on]
     has_span = k <= TOWER
+    chord = None
+    if k < TOWER:
+        chord = float(np.median(surface.chord_position(k, points[on])))
     return BoxLocation(PARTS[k], side,
                        float(np.median(spans)) if has_span else None,
                        float(spans.min()) if has_span else None,
                        float(spans.max()) if has_span else None,
-                       float(np.median(hits.distance[on])), float(on.mean()))
+                       float(np.median(hits.distance[on])), float(on.mean()), chord)

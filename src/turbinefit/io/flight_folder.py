@@ -132,10 +132,15 @@ SIGMA_FILE = "keyframes_sigma.csv"
 SIGMA_HEADER = "timestamp,sigma_x,sigma_y,sigma_z"
 #: A keyframe position's standard deviation [m].
 POSITION_SIGMA = Quantity("position standard deviation", "m", 0.0, 1e4, lo_open=True)
+#: Written by ``simulate`` with known defects: the defects (:mod:`turbinefit.io.defects`).
+DEFECTS_FILE = "defects_groundtruth.csv"
+#: Written by ``simulate`` with known defects and photos: each photo's defect boxes.
+DEFECT_BOXES_FILE = "defect_boxes.csv"
 #: Every entry a flight folder may contain (what ``write_flight(overwrite=True)`` may replace).
 FLIGHT_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                             HEATMAP_DIR, IMAGE_DIR, GT_POSES_FILE, GT_TURBINE_FILE,
-                            SIMULATION_FILE, GEOREF_FILE, SIGMA_FILE})
+                            SIMULATION_FILE, GEOREF_FILE, SIGMA_FILE, DEFECTS_FILE,
+                            DEFECT_BOXES_FILE})
 #: The entries :func:`write_flight` writes from the Flight itself (not as ``extra_texts``).
 _DATA_ENTRIES = frozenset({CAMERA_FILE, KEYFRAMES_FILE, ODOMETRY_FILE, TURBINE_FILE,
                            HEATMAP_DIR, GT_POSES_FILE, GT_TURBINE_FILE, SIGMA_FILE})
@@ -428,7 +433,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                  images: Iterable[NDArray[np.uint8]] | None = None,
                  camera: PinholeCamera | None = None,
                  overwrite_hint: str = OVERWRITE_HINT,
-                 heatmap_dtype: HeatmapDtype = WRITTEN_HEATMAP_DTYPE) -> Path:
+                 heatmap_dtype: HeatmapDtype = WRITTEN_HEATMAP_DTYPE,
+                 after_images: Callable[[], Mapping[str, str]] | None = None) -> Path:
     """Write ``flight`` as a flight folder, atomically (layout in the module docstring).
 
     Everything is written into a hidden temporary sibling of ``folder`` and renamed into
@@ -458,6 +464,8 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
         overwrite_hint: ends the message refusing a non-empty folder.
         heatmap_dtype: ``float16`` (default: half the bytes of float32, values to within
             2.5e-4) or ``float32`` (the values exactly).
+        after_images: gives further texts (as ``extra_texts``) once the photos are
+            written, e.g. what they show.
 
     Returns:
         The folder written.
@@ -523,6 +531,10 @@ def write_flight(flight: Flight, folder: StrPath, overwrite: bool = False,
                 raise write_error(e, root / HEATMAP_DIR / heatmap_filename(t)) from e
         if images is not None:
             _write_images(tmp / IMAGE_DIR, root / IMAGE_DIR, flight, images, photo_camera)
+        for name, text in (after_images() if after_images is not None else {}).items():
+            if name not in FLIGHT_ENTRIES - _DATA_ENTRIES - set(texts):
+                raise ValueError(f"after_images: {name!r} is not an extra flight-folder file")
+            write_text_atomic(tmp / name, text, fsync=False)
     return root
 
 

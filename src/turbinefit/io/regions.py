@@ -7,7 +7,9 @@ photo found on disk and every box checked before anything is returned:
 
       filename,width,height,class,xmin,ymin,xmax,ymax
 
-  with or without that header line (any other header is refused). Coordinates are pixel
+  with or without that header line (any other header is refused), and optionally a ninth
+  column ``defect`` naming the known defect the box shows (``simulate``'s
+  ``defect_boxes.csv``; every row then has it, it may be empty). Coordinates are pixel
   edges (0 is the left edge of the first pixel, ``xmax`` = ``width`` the right edge of the
   last): ``0 <= xmin < xmax <= width``, the same in y. Rows of one ``filename`` are boxes of
   one photo and must agree on its size. The photo is ``images_dir / filename``, or, if
@@ -53,6 +55,8 @@ from turbinefit.io.images import IMAGE_SUFFIXES
 
 #: The columns of a box CSV, in order.
 BOX_COLUMNS = ("filename", "width", "height", "class", "xmin", "ymin", "xmax", "ymax")
+#: The optional last column of a box CSV: the known defect a box shows.
+DEFECT_COLUMN = "defect"
 
 Box = tuple[float, float, float, float]
 
@@ -72,6 +76,8 @@ class RegionLabel:
             pixel edges.
         rles: (class, RLE) of each run-length-encoded mask (COCO ``segmentation``;
             :func:`decode_rle`).
+        defects: the known defect each box shows (a box CSV's ``defect`` column, one per
+            box, ``""`` for none); empty without that column.
     """
 
     path: Path
@@ -81,6 +87,7 @@ class RegionLabel:
     where: str = ""
     polygons: tuple[tuple[str, tuple[float, ...]], ...] = ()
     rles: tuple[tuple[str, dict[str, Any]], ...] = ()
+    defects: tuple[str, ...] = ()
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -132,23 +139,31 @@ def read_box_csv(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
         raise InputError("images folder is not a directory", path=d)
     rows = list(csv.reader(io.StringIO(read_text(p))))
     out: dict[str, tuple[Path, tuple[int, int], list[tuple[str, Box]], str]] = {}
+    names: dict[str, list[str]] = {}
+    columns: tuple[str, ...] | None = None  # fixed by the header or the first row
+    both = f"{','.join(BOX_COLUMNS)}[,{DEFECT_COLUMN}]"
     for k, row in enumerate(rows, start=1):
         where = f"{p}:{k}"
         cells = [c.strip() for c in row]
         if not cells or cells == [""]:
             continue
-        if k == 1 and cells and not cells[1].lstrip("-").isdigit():  # a header line
-            if tuple(c.lower() for c in cells) != BOX_COLUMNS:
-                raise InputError(f"unknown columns {','.join(cells)}; expected "
-                                 f"{','.join(BOX_COLUMNS)}", path=where)
+        if k == 1 and len(cells) > 1 and not cells[1].lstrip("-").isdigit():  # a header
+            columns = tuple(c.lower() for c in cells)
+            if columns not in (BOX_COLUMNS, (*BOX_COLUMNS, DEFECT_COLUMN)):
+                raise InputError(f"unknown columns {','.join(cells)}; expected {both}",
+                                 path=where)
             continue
-        if len(cells) != len(BOX_COLUMNS):
-            raise InputError(f"{len(cells)} columns, expected {len(BOX_COLUMNS)} "
-                             f"({','.join(BOX_COLUMNS)})", path=where)
+        if columns is None and len(cells) in (len(BOX_COLUMNS), len(BOX_COLUMNS) + 1):
+            columns = (BOX_COLUMNS if len(cells) == len(BOX_COLUMNS)
+                       else (*BOX_COLUMNS, DEFECT_COLUMN))
+        want = columns or BOX_COLUMNS
+        if len(cells) != len(want):
+            raise InputError(f"{len(cells)} columns, expected {len(want)} "
+                             f"({','.join(want)})", path=where)
         name, ws, hs, cls = cells[:4]
         try:
             size = (int(ws), int(hs))
-            box = tuple(float(v) for v in cells[4:])
+            box = tuple(float(v) for v in cells[4:8])
         except ValueError:
             raise InputError(f"width, height and coordinates must be numbers: {','.join(cells)}",
                              path=where) from None
@@ -163,10 +178,13 @@ def read_box_csv(path: StrPath, images_dir: StrPath) -> list[RegionLabel]:
                              f"{out[name][1][0]}x{out[name][1][1]} at {out[name][3]}",
                              path=where)
         out[name][2].append((cls, box))  # type: ignore[arg-type]
+        names.setdefault(name, []).append(cells[8] if len(cells) > 8 else "")
     if not out:
         raise InputError("no boxes in the file", path=p)
-    return [RegionLabel(ph, size, tuple(boxes), None, where)
-            for ph, size, boxes, where in out.values()]
+    with_defects = columns is not None and DEFECT_COLUMN in columns
+    return [RegionLabel(ph, size, tuple(boxes), None, where,
+                        defects=tuple(names[name]) if with_defects else ())
+            for name, (ph, size, boxes, where) in out.items()]
 
 
 def decode_rle(rle: dict[str, Any]) -> NDArray[np.bool_]:

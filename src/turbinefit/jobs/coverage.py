@@ -18,7 +18,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from turbinefit import __version__
 from turbinefit.errors import InputError
@@ -40,6 +40,7 @@ from turbinefit.inspection.surface import (
 )
 from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.io.camera_yaml import read_camera_yaml
+from turbinefit.io.defects import LocatedDamage
 from turbinefit.io.flight_folder import CAMERA_FILE, IMAGE_DIR, KEYFRAMES_FILE, TURBINE_FILE
 from turbinefit.io.georef import Georef, read_flight_georef
 from turbinefit.io.quantities import Quantity
@@ -56,6 +57,9 @@ from turbinefit.jobs.outputs import (
 )
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
+if TYPE_CHECKING:
+    from turbinefit.eval.damage import DamageScore
+
 COVERAGE_OUTPUTS = OutputKind("coverage", frozenset({
     "coverage.csv", "sides.csv", "summary.json", "coverage.png", "damage.csv"}))
 
@@ -71,7 +75,7 @@ BLADE_ANGLE_DEG = Quantity("blade angle", "deg", -90.0, 90.0)
 #: Columns of ``damage.csv`` (:func:`format_damage_csv`).
 DAMAGE_COLUMNS = ("photo", "timestamp", "keyframe", "class", "xmin", "ymin", "xmax", "ymax",
                   "part", "side", "span_m", "span_from_m", "span_to_m", "distance_m",
-                  "on_part")
+                  "on_part", "chord", "defect")
 
 
 @dataclass
@@ -179,6 +183,7 @@ class CoverageReport:
     summary: dict[str, Any]
     timings: dict[str, float] = field(default_factory=dict)
     damage: list[DamageBox] | None = None
+    damage_score: DamageScore | None = None
 
 
 def format_coverage_csv(coverage: Coverage, timestamps: Any) -> str:
@@ -217,6 +222,8 @@ class DamageBox:
         label: the box's class; box: (left, top, right, bottom) in the CSV's pixels.
         location: :func:`~turbinefit.inspection.surface.locate_box` of the box scaled to
             the camera's pixels.
+        defect: the known defect the box shows (the CSV's ``defect`` column; ``""``: none
+            or no such column).
     """
 
     photo: str
@@ -224,6 +231,7 @@ class DamageBox:
     label: str
     box: Box
     location: BoxLocation
+    defect: str = ""
 
 
 def _same_photo(a: Path, b: Path) -> bool:
@@ -240,9 +248,10 @@ def _same_photo(a: Path, b: Path) -> bool:
 
 
 def read_damage_boxes(path: Path, photos_dir: Path, fit: FitOutput, camera: PinholeCamera
-                      ) -> list[tuple[str, int, str, Box, Box]]:
+                      ) -> list[tuple[str, int, str, Box, Box, str]]:
     """The boxes of a damage CSV (:func:`turbinefit.io.regions.read_box_csv`; photos in
-    ``photos_dir``) as (photo, keyframe, class, box, the box in the camera's pixels). A photo is a
+    ``photos_dir``) as (photo, keyframe, class, box, the box in the camera's pixels, the
+    known defect it shows or ``""``). A photo is a
     keyframe's if its name is the keyframe's timestamp (``images/<t>.jpg`` of a flight
     folder) or if it is the same file as that keyframe's photo (the originals ``import dji``
     linked); boxes drawn on the photo at another size of the same aspect are scaled.
@@ -277,9 +286,10 @@ def read_damage_boxes(path: Path, photos_dir: Path, fit: FitOutput, camera: Pinh
         if abs(sx / sy - 1.0) > 0.01:
             raise InputError(f"photo {lab.path.name} is {w}x{h}, not the shape of the camera's "
                              f"{camera.width}x{camera.height}", path=lab.where)
-        for cls, (x0, y0, x1, y1) in lab.boxes:
+        names = lab.defects or ("",) * len(lab.boxes)
+        for (cls, (x0, y0, x1, y1)), defect in zip(lab.boxes, names, strict=True):
             out.append((lab.path.name, k, cls, (x0, y0, x1, y1),
-                        (x0 * sx, y0 * sy, x1 * sx, y1 * sy)))
+                        (x0 * sx, y0 * sy, x1 * sx, y1 * sy), defect))
     return out
 
 
@@ -296,7 +306,8 @@ def format_damage_csv(boxes: list[DamageBox], timestamps: Any) -> str:
             d.photo, f"{float(timestamps[d.keyframe]):.6f}", str(d.keyframe), d.label,
             *(f"{v:g}" for v in d.box), loc.part or "", loc.side or "",
             num(loc.span_m, ".2f"), num(loc.span_from_m, ".2f"), num(loc.span_to_m, ".2f"),
-            num(loc.distance_m, ".2f"), f"{loc.on_part:.2f}"]))
+            num(loc.distance_m, ".2f"), f"{loc.on_part:.2f}", num(loc.chord, ".3f"),
+            d.defect]))
     return "\n".join(lines) + "\n"
 
 
@@ -305,7 +316,8 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
                     camera: PinholeCamera | None = None, step: float = 0.5,
                     max_gsd_mm: float = 2.0, blade_pitch: float = 0.0,
                     blade_twist: float = 0.0, damage: str | os.PathLike[str] | None = None,
-                    damage_photos: str | os.PathLike[str] | None = None, plots: bool = True,
+                    damage_photos: str | os.PathLike[str] | None = None,
+                    truth: str | os.PathLike[str] | None = None, plots: bool = True,
                     overwrite: bool = False) -> CoverageReport:
     """What each keyframe of the fit in ``fit_dir`` shows (its fitted poses and turbine, the
     photos' ``camera``, by default that of ``flight_dir`` or of the flight its
@@ -316,8 +328,11 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     ``blade_pitch`` and root twist ``blade_twist`` [rad] (0: flat in the rotor plane).
     With ``damage`` (a box CSV, :mod:`turbinefit.io.regions`, of photos in
     ``damage_photos``, default the flight's ``images/``), ``damage.csv`` says where each
-    box lies: part, side, span and distance (:func:`read_damage_boxes`,
-    :func:`~turbinefit.inspection.surface.locate_box`).
+    box lies: part, side, span, distance and chord (:func:`read_damage_boxes`,
+    :func:`~turbinefit.inspection.surface.locate_box`), and the known defect the box shows
+    if the CSV names it. With ``truth`` too (the known defects, ``defects_groundtruth.csv``
+    of ``simulate``), the boxes are scored against them
+    (:func:`turbinefit.eval.damage.score_damage`): ``summary.json``'s ``damage_score``.
 
     Raises:
         InputError: bad input or a bad ``out_dir`` (checked first); nothing is written.
@@ -328,7 +343,10 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
     max_gsd_mm = GSD_MM.check(max_gsd_mm, field="--gsd")
     BLADE_ANGLE_DEG.check(math.degrees(blade_pitch), field="--blade-pitch")
     BLADE_ANGLE_DEG.check(math.degrees(blade_twist), field="--blade-twist")
-    inputs = [fit_dir] + [Path(p) for p in (flight_dir, damage, damage_photos) if p is not None]
+    if truth is not None and damage is None:
+        raise InputError("needs --damage (the boxes to score)", field="--truth")
+    inputs = [fit_dir] + [Path(p) for p in (flight_dir, damage, damage_photos, truth)
+                          if p is not None]
     COVERAGE_OUTPUTS.check(out_dir, inputs, overwrite)
     fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
     if fit.flight_dir is not None:
@@ -345,9 +363,17 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         photos = Path(damage_photos) if damage_photos is not None else \
             fit.flight_dir / IMAGE_DIR  # type: ignore[operator]
         damage_boxes = [DamageBox(name, k, cls, box, locate_box(surface, cam,
-                                                                fit.world_T_cam[k], cam_box))
-                        for name, k, cls, box, cam_box in read_damage_boxes(
+                                                                fit.world_T_cam[k], cam_box),
+                                  defect)
+                        for name, k, cls, box, cam_box, defect in read_damage_boxes(
                             Path(damage), photos, fit, cam)]
+    score = None
+    if truth is not None:
+        from turbinefit.eval.damage import score_damage
+        from turbinefit.io.defects import read_defects_csv
+
+        assert damage_boxes is not None
+        score = score_damage(located_damage(damage_boxes), read_defects_csv(truth).defects)
     t1 = time.perf_counter()
     cov = flight_coverage(surface, cam, fit.world_T_cam, step)
     timings = {"load": t1 - t0, "coverage": time.perf_counter() - t1}
@@ -362,6 +388,9 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         "coverage": cov.summary(max_gsd_mm), "timing_s": timings,
         "damage_boxes": None if damage_boxes is None else len(damage_boxes),
     }
+    if score is not None:
+        summary["damage_score"] = {**score.summary(), "truth": str(truth),
+                                   "per_defect": score.rows()}
     with COVERAGE_OUTPUTS.writing(out_dir, overwrite) as tmp:
         write_text_atomic(tmp / "coverage.csv", format_coverage_csv(cov, fit.timestamps),
                           fsync=False)
@@ -379,4 +408,12 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
         write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
-    return CoverageReport(cov, surface, out_dir, summary, timings, damage_boxes)
+    return CoverageReport(cov, surface, out_dir, summary, timings, damage_boxes, score)
+
+
+def located_damage(boxes: list[DamageBox]) -> list[LocatedDamage]:
+    """The boxes as ``damage.csv`` rows (:func:`turbinefit.eval.damage.score_damage`'s)."""
+    return [LocatedDamage(d.photo, d.keyframe, d.label, d.location.part, d.location.side,
+                          d.location.span_m, d.location.chord, d.location.distance_m, d.defect,
+                          (d.box[2] - d.box[0]) * (d.box[3] - d.box[1]))
+            for d in boxes]

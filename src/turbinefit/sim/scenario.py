@@ -8,22 +8,33 @@ turbine, heat-maps rendered from the **ground truth**, then sequential (drifting
 the poses and Gaussian noise on the turbine parameters as the initial estimates. It is
 fully determined by :attr:`SimConfig.seed`: independent random streams are spawned from
 ``np.random.SeedSequence(seed)`` for the turbine, the trajectory, the second turbine, the
-pose drift, the turbine noise, the heat-maps (one child per keyframe) and the body-frame
-odometry (appended last, so that it changed no earlier flight), so changing one
-part of the configuration does not reshuffle the others (e.g. the turbine and flight path
-do not change with the heat-map noise, and the turbine does not change with N).
+pose drift, the turbine noise, the heat-maps (one child per keyframe), the body-frame
+odometry, the GNSS errors and the drawn defects (the last three appended after the others,
+so that they changed no earlier flight), so changing one part of the configuration does
+not reshuffle the others (e.g. the turbine and flight path do not change with the
+heat-map noise, and the turbine does not change with N).
+
+:func:`simulate` also flies a given path (:class:`FlightPath`: ground-truth poses and
+timestamps, e.g. the keyframes ``plan`` wrote) instead of the simulator's own inspection,
+records poses with a GNSS error model (:attr:`SimConfig.gnss`,
+:mod:`turbinefit.sim.gnss`) instead of the default drift, and draws known defects on the
+blades (:attr:`SimConfig.defects`, :mod:`turbinefit.sim.defects`) or takes them given.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
+from turbinefit.sim.gnss import GNSS_MODELS, GnssPoses, gnss_model, gnss_poses
 from turbinefit.sim.noise import (
     DEFAULT_TURBINE_SIGMA,
     body_odometry,
@@ -36,12 +47,15 @@ from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
 from turbinefit.sim.turbines import neighbour_turbine, preset_turbine
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineGeometry, TurbineParams
 
+if TYPE_CHECKING:
+    from turbinefit.inspection.defects import Defect
+
 #: Default largest heat-map width [px] (:attr:`SimConfig.heatmap_size`).
 HEATMAP_WIDTH = 320
 
 #: Stream indices of :func:`simulate_flight`'s spawned generators.
 _STREAMS = ("turbine", "trajectory", "second_turbine", "drift", "turbine_noise", "heatmaps",
-            "odometry")
+            "odometry", "gnss", "defects")
 #: Kinds of pose measurements :func:`simulate_flight` simulates (``SimConfig.odometry``).
 ODOMETRY_KINDS = ("gps", "vio")
 
@@ -96,6 +110,17 @@ class SimConfig:
             fields are not used.
         odometry_noise: scale of the ``vio`` odometry's per-edge sigmas (1 = the defaults
             of :mod:`turbinefit.sim.noise`: 0.02 m + 1 % of the step, 0.05 deg per axis).
+        intrinsics: (fx, fy, cx, cy, skew) [px] of the camera (a given ``camera.yaml``),
+            or None: from ``hfov_deg``, the principal point at the image centre.
+        gnss: the poses' error model, ``standard`` or ``rtk``
+            (:data:`~turbinefit.sim.gnss.GNSS_MODELS`), instead of the drift of
+            ``drift_pos_m`` / ``drift_rot_deg``; None: that drift. With ``vio`` odometry
+            keyframes.txt holds the GNSS poses and odometry.txt the VIO.
+        defects: number of known defects drawn on the blades
+            (:func:`~turbinefit.sim.defects.draw_defects`).
+        surface_detail: photos show the blades' and tower's surface as an inspection's
+            close-ups do (:class:`~turbinefit.sim.photos.FlightPhotos`); always with
+            defects.
     """
 
     n_keyframes: int = 200
@@ -118,6 +143,10 @@ class SimConfig:
     dt: float = 1.0
     odometry: str = "gps"
     odometry_noise: float = 1.0
+    intrinsics: tuple[float, float, float, float, float] | None = None
+    gnss: str | None = None
+    defects: int = 0
+    surface_detail: bool = False
 
     def __post_init__(self) -> None:
         if self.n_keyframes < 1:
@@ -138,6 +167,10 @@ class SimConfig:
                 and self.odometry_noise >= 0):
             raise ValueError(f"odometry_noise must be a non-negative number, "
                              f"got {self.odometry_noise!r}")
+        if self.gnss is not None and self.gnss not in GNSS_MODELS:
+            raise ValueError(f"gnss must be one of {', '.join(GNSS_MODELS)}, got {self.gnss!r}")
+        if not (isinstance(self.defects, int) and self.defects >= 0):
+            raise ValueError(f"defects must be a whole number >= 0, got {self.defects!r}")
         if self.heatmap_size is not None:
             try:
                 self.heatmap_camera()
@@ -145,7 +178,10 @@ class SimConfig:
                 raise ValueError(f"heatmap_size: {e}") from None
 
     def camera(self) -> PinholeCamera:
-        """The simulated camera (principal point at the image centre)."""
+        """The simulated camera: :attr:`intrinsics`, or the principal point at the image
+        centre and the focal length of :attr:`hfov_deg`."""
+        if self.intrinsics is not None:
+            return PinholeCamera(self.width, self.height, *self.intrinsics, self.distortion)
         f = 0.5 * self.width / math.tan(math.radians(self.hfov_deg) / 2.0)
         return PinholeCamera(self.width, self.height, f, f, (self.width - 1) / 2.0,
                              (self.height - 1) / 2.0, 0.0, self.distortion)
@@ -192,6 +228,13 @@ PRESETS: dict[str, SimConfig] = {
 }
 
 
+def with_camera(cfg: SimConfig, camera: PinholeCamera) -> SimConfig:
+    """``cfg`` with ``camera`` as its photos' camera (size, intrinsics, distortion)."""
+    return replace(cfg, width=camera.width, height=camera.height,
+                   intrinsics=(camera.fx, camera.fy, camera.cx, camera.cy, camera.skew),
+                   distortion=tuple(float(c) for c in camera.distortion))  # type: ignore[arg-type]
+
+
 def preset(name: str, **overrides: object) -> SimConfig:
     """A named scenario of :data:`PRESETS`, with fields replaced by ``overrides``."""
     if name not in PRESETS:
@@ -212,6 +255,52 @@ def _place_neighbour(primary: TurbineParams, path_xy: np.ndarray,
     return other
 
 
+@dataclass(frozen=True)
+class FlightPath:
+    """A path to fly: ground-truth poses ``world_T_cam`` (N,) at ``timestamps`` (N,) [s,
+    increasing]."""
+
+    timestamps: NDArray[np.float64]
+    world_T_cam: SE3
+
+    def __post_init__(self) -> None:
+        n = self.world_T_cam.batch_shape
+        if len(n) != 1 or self.timestamps.shape != n or n[0] < 1:
+            raise ValueError(f"{self.timestamps.shape} timestamps for poses of batch {n}")
+        if not np.all(np.diff(self.timestamps) > 0):
+            raise ValueError("timestamps must increase")
+
+    def __len__(self) -> int:
+        return int(self.timestamps.size)
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """What :func:`simulate` made.
+
+    Attributes:
+        flight: the flight (:func:`simulate_flight`).
+        gnss: the GNSS fixes (recorded poses, per-keyframe position sigmas, errors) when
+            :attr:`SimConfig.gnss` is set, else None.
+        defects: the known defects on the true turbine's blades.
+    """
+
+    flight: Flight
+    gnss: GnssPoses | None
+    defects: list[Defect]
+
+
+def _streams(seed: int) -> dict[str, np.random.Generator]:
+    return dict(zip(_STREAMS, [np.random.default_rng(s) for s in
+                               np.random.SeedSequence(seed).spawn(len(_STREAMS))], strict=True))
+
+
+def true_turbine(cfg: SimConfig) -> TurbineParams:
+    """The ground-truth turbine of the flight ``cfg`` simulates (its seed and turbine
+    preset alone decide it)."""
+    return preset_turbine(cfg.turbine, _streams(cfg.seed)["turbine"])
+
+
 def simulate_flight(cfg: SimConfig | None = None, progress: bool = False,
                     out: np.ndarray | None = None) -> Flight:
     """Simulate an inspection flight; ``out``: a preallocated float32 array (N, 7, h, w)
@@ -226,15 +315,35 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False,
         :attr:`SimConfig.heatmap_size`; its camera is :meth:`SimConfig.heatmap_camera`
         (photos are taken with :meth:`SimConfig.camera`).
     """
-    cfg = cfg or SimConfig()
-    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(
-        len(_STREAMS))]
-    rng = dict(zip(_STREAMS, streams, strict=True))
+    return simulate(cfg, progress=progress, out=out).flight
 
+
+def simulate(cfg: SimConfig | None = None, path: FlightPath | None = None,
+             defects: list[Defect] | None = None, progress: bool = False,
+             out: np.ndarray | None = None) -> Simulation:
+    """Simulate a flight (:func:`simulate_flight`), along ``path`` if given (its poses are
+    the ground truth, its timestamps the keyframes'; ``cfg.n_keyframes`` must be its
+    length), with ``defects`` (checked: :func:`~turbinefit.sim.defects.check_defects`) or
+    :attr:`SimConfig.defects` drawn ones on the blades, and the GNSS fixes of
+    :attr:`SimConfig.gnss`."""
+    from turbinefit.inspection.defects import check_defects
+    from turbinefit.sim.defects import draw_defects
+
+    cfg = cfg or SimConfig()
+    rng = _streams(cfg.seed)
     gt_turbine = preset_turbine(cfg.turbine, rng["turbine"])
-    path = plan_inspection(gt_turbine, cfg.n_keyframes, rng["trajectory"], cfg.geometry,
-                           cfg.trajectory)
-    gt_poses = path.world_T_cam
+    if path is None:
+        gt_poses = plan_inspection(gt_turbine, cfg.n_keyframes, rng["trajectory"], cfg.geometry,
+                                   cfg.trajectory).world_T_cam
+        timestamps = cfg.t0 + cfg.dt * np.arange(cfg.n_keyframes, dtype=np.float64)
+    else:
+        if len(path) != cfg.n_keyframes:
+            raise ValueError(f"a path of {len(path)} poses for {cfg.n_keyframes} keyframes")
+        gt_poses, timestamps = path.world_T_cam, np.asarray(path.timestamps, dtype=np.float64)
+    if defects is None:
+        defects = draw_defects(cfg.defects, gt_turbine, rng["defects"])
+    else:
+        check_defects(defects, gt_turbine)
     distractors = []
     if cfg.second_turbine:
         other = _place_neighbour(gt_turbine, gt_poses.translation[:, :2],
@@ -250,9 +359,12 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False,
     if cfg.odometry == "vio":
         odometry = body_odometry(gt_poses, rng["odometry"], cfg.odometry_noise)
         init_poses = odometry
+    gnss = None
+    if cfg.gnss is not None:  # with vio: GNSS keyframes, VIO pairwise motions
+        gnss = gnss_poses(gt_poses, timestamps, gnss_model(cfg.gnss), rng["gnss"])
+        init_poses = gnss.world_T_cam
     init_turbine = perturb_turbine(gt_turbine, cfg.turbine_sigma, rng["turbine_noise"])
-    timestamps = cfg.t0 + cfg.dt * np.arange(cfg.n_keyframes, dtype=np.float64)
-    return Flight(
+    flight = Flight(
         camera=camera,
         timestamps=timestamps,
         world_T_cam=init_poses,
@@ -262,3 +374,4 @@ def simulate_flight(cfg: SimConfig | None = None, progress: bool = False,
         gt_world_T_cam=gt_poses,
         gt_turbine=gt_turbine,
     )
+    return Simulation(flight, gnss, defects)

@@ -106,13 +106,18 @@ class Frame:
         self.cam_t = -self.cam_R_world @ self.o
         #: Per-pixel labels (:meth:`enable_labels`): part code, span [m] and side angle.
         self.labels: tuple[NDArray[np.int8], F32, F32] | None = None
+        #: Per-pixel index into ``scene.defects`` of the defect shown (-1: none), with
+        #: :attr:`labels`.
+        self.defect_labels: NDArray[np.int16] | None = None
 
     def enable_labels(self) -> None:
         """Record, where :meth:`composite` writes the depth, the part's code, span and side
-        angle it passes (:func:`~turbinefit.sim.images.render.render_labels`)."""
+        angle it passes (:func:`~turbinefit.sim.images.render.render_labels`), and the
+        defect it shows."""
         n = self.W * self.H
         self.labels = (np.zeros(n, dtype=np.int8), np.full(n, np.nan, dtype=np.float32),
                        np.full(n, np.nan, dtype=np.float32))
+        self.defect_labels = np.full(n, -1, dtype=np.int16)
 
     def to_cam(self, p: FloatArray) -> FloatArray:
         """World points (k, 3) in the camera frame."""
@@ -251,10 +256,12 @@ class Frame:
         return blend(col, self.haze, h)
 
     def composite(self, idx: IntArray, depth: F32, cov: F32, col: F32,
-                  label: tuple[int, F32 | None, F32 | None] = (0, None, None)) -> None:
+                  label: tuple[int, F32 | None, F32 | None] = (0, None, None),
+                  defect: NDArray[np.int16] | None = None) -> None:
         """Blend a part's pixels (coverage ``cov``) over the buffer where it is nearest;
-        ``label``: its code and per-pixel span and side angle (or None), recorded with
-        the depth when :meth:`enable_labels` was called."""
+        ``label``: its code and per-pixel span and side angle (or None), and ``defect``
+        the per-pixel defect shown (or None: none), recorded with the depth when
+        :meth:`enable_labels` was called."""
         z = self.Z[idx]
         sel = np.flatnonzero((depth < z) & (cov > 0.003))
         if sel.size == 0:
@@ -269,3 +276,5 @@ class Frame:
             self.labels[0][at] = label[0]
             for buf, val in zip(self.labels[1:], label[1:], strict=True):
                 buf[at] = np.nan if val is None else val[sel][solid]
+            if self.defect_labels is not None:
+                self.defect_labels[at] = -1 if defect is None else defect[sel][solid]

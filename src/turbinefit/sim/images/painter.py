@@ -8,12 +8,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
-from turbinefit.sim.images.arrays import F32, FloatArray, blend, column, dot3, matmul3, take_cols
+from turbinefit.sim.images.arrays import (
+    F32,
+    FloatArray,
+    blend,
+    column,
+    dot3,
+    lerp3,
+    matmul3,
+    put_cols,
+    take_cols,
+)
 from turbinefit.sim.images.clutter import Clutter
 from turbinefit.sim.images.frame import NEAR, Frame
 from turbinefit.sim.images.scene import Scene
-from turbinefit.sim.images.textures import cell_hash
+from turbinefit.sim.images.textures import cell_hash, sample_tile
 from turbinefit.sim.images.turbine import TurbineSolid
 from turbinefit.turbine.solid import blade_profile, blade_twist
 
@@ -31,6 +42,8 @@ class Painter:
         self.fr = fr
         self.sc = scene
         self.code = 0  # label of the part being drawn (see LABEL_CODES)
+        self.blade = -1  # model index of the blade being drawn
+        self.primary = True  # whether the turbine being drawn is the primary
 
     def tube(self, a: FloatArray, e: FloatArray, L: float, kind: str, tb: TurbineSolid,
              c0: FloatArray) -> None:
@@ -126,6 +139,7 @@ class Painter:
         s_hit = ew + depth * b_  # axis coordinate of the hit point
         pix = np.maximum(depth, NEAR) * np.float32(fr.inv_f)
         cov = cov * np.clip(0.5 + s_hit * sq / pix, 0.0, 1.0)
+        defect: NDArray[np.int16] | None = None
         if kind == "tower":
             cov = cov * np.clip(0.5 + (np.float32(L) - s_hit) * sq / pix, 0.0, 1.0)
             z = np.float32(fr.o[2]) + depth * D[2]
@@ -144,19 +158,97 @@ class Painter:
                     dm = low[(da * A[low] < 0.55) & (z[low] > 0.15) & (z[low] < 2.4)]
                     albedo[:, dm] = column((0.35, 0.36, 0.37))
         else:
-            albedo = self.blade_surface(albedo, u * np.float32(L), np.float32(L), X / A, X)
-        if kind != "tower" and self.sc.tip_bands:
-            if self.sc.tip_bands == 1:
-                band = u > 0.9
-            else:
-                band = ((u > 0.8) & (u < 0.87)) | (u > 0.93)
-            albedo[:, band] = column(self.sc.tip_colour)
+            # the renderer's chord axis points to the trailing edge of inspection.surface
+            flip = np.float32(-1.0 if self.sc.surface_detail else 1.0)
+            albedo = self.blade_surface(albedo, u * np.float32(L), np.float32(L), flip * X / A,
+                                        flip * X)
+            if self.sc.tip_bands:
+                if self.sc.tip_bands == 1:
+                    band = u > 0.9
+                else:
+                    band = ((u > 0.8) & (u < 0.87)) | (u > 0.93)
+                albedo[:, band] = column(self.sc.tip_colour)
+            if self.sc.surface_detail:
+                albedo = self.gelcoat(albedo, s_hit, X, Y, pix)
+            if self.sc.defects and self.primary:
+                albedo, defect = self.defects(albedo, np.clip(s_hit, 0.0, np.float32(L)), X, Y,
+                                              pix)
         col = fr.shade(albedo, nl, nz, nD, dot3(fr.sun_f, D), 0.3)
         label: tuple[int, F32 | None, F32 | None] = (self.code, None, None)
         if fr.labels is not None:  # span, and the side angle of a blade (see LABEL_CODES)
             span = s_hit if kind == "tower" else np.clip(s_hit, 0.0, np.float32(L))
             label = (self.code, span, None if kind == "tower" else np.arctan2(-mn, mc))
-        fr.composite(idx, depth, cov, fr.hazed(col, depth), label)
+        fr.composite(idx, depth, cov, fr.hazed(col, depth), label, defect)
+
+    def gelcoat(self, albedo: F32, span: F32, X: F32, Y: F32, pix: F32) -> F32:
+        """The blade shell's mottling at 0.6 m and 2.5 m periods (a few per cent), faded
+        out where a pixel ([m], ``pix``) is coarser than its features, so that a close-up
+        at millimetres per pixel shows a surface, not a flat colour."""
+        tile = self.fr.A.detail
+        out = albedo
+        arc = X + np.float32(2.0) * Y  # round the section (Y matters on the edges)
+        for period, amp, shift in ((0.6, 0.06, 17.0), (2.5, 0.05, 101.0)):
+            k = np.float32(tile.size / period)
+            n = sample_tile(tile, span * k + np.float32(shift), arc * k, (0,))[0]
+            feature = np.float32(4.0 * period / tile.size)
+            fade = np.clip(2.0 - 2.0 * pix / feature, 0.0, 1.0)
+            out = out * (1.0 + np.float32(2.0 * amp) * (n - 0.5) * fade)[None]
+        return out
+
+    def defects(self, albedo: F32, span: F32, X: F32, Y: F32, pix: F32
+                ) -> tuple[F32, NDArray[np.int16] | None]:
+        """Paint the scene's defects on this blade (:mod:`turbinefit.sim.defects`) at the
+        surface points ``(span, X, Y)`` (span [m] from the hub, ``(X, Y)`` the section's
+        chord and thickness coordinates [m]); ``pix``: metres per pixel there. Returns the
+        colours and, per pixel, the defect covering more than half of it (-1: none), or
+        None if no defect is near."""
+        out = albedo
+        ids: NDArray[np.int16] | None = None
+        for k, (blade, kind, s0, x0, y0, r, phase) in enumerate(self.sc.defects):
+            if int(blade) != self.blade:
+                continue
+            ds = span - np.float32(s0)
+            near = np.flatnonzero(np.abs(ds) < np.float32(r) + 2.0 * pix)
+            if near.size == 0:
+                continue
+            ds = ds[near]
+            dx, dy = X[near] - np.float32(x0), Y[near] - np.float32(y0)
+            d = np.sqrt(ds * ds + dx * dx + dy * dy)
+            p = pix[near]
+            r32 = np.float32(r)
+            if kind == 0:  # erosion: a ragged patch of pits
+                th = np.arctan2(ds, np.sqrt(dx * dx + dy * dy) * np.sign(dx + 1e-9))
+                rr = r32 * (0.85 + 0.12 * np.sin(3.0 * th + np.float32(phase))
+                            + 0.08 * np.sin(7.0 * th + np.float32(2.0 * phase)))
+                mask = np.clip(0.5 + (rr - d) / p, 0.0, 1.0)
+                pit = cell_hash(np.floor(ds * 90.0).astype(np.int32),
+                                np.floor((dx + dy) * 90.0).astype(np.int32), 7 + k)
+                col = lerp3((0.55, 0.52, 0.47), (0.32, 0.30, 0.28), (pit > 0.6).astype(np.float32))
+            elif kind == 1:  # crack: a thin jagged line, across a face or along an edge
+                edge = y0 == 0.0  # on an edge, where the section's thickness is 0
+                along = ds if edge else dx
+                across = np.sqrt(dx * dx + dy * dy) if edge else ds
+                w = np.float32(max(0.005, r / 25.0))  # half its width
+                wiggle = 0.3 * r32 * 0.15 * (np.sin(along * np.float32(37.0 / r) + phase)
+                                             + 0.5 * np.sin(along * np.float32(91.0 / r)))
+                off = np.abs(across - wiggle)
+                hw = np.maximum(w, 0.5 * p)
+                # only near the centre (not through to the other face)
+                mask = np.clip(0.5 + (hw - off) / p, 0.0, 1.0) * (w / hw) \
+                    * np.clip(0.5 + (r32 - d) / p, 0.0, 1.0)
+                col = np.repeat(column((0.12, 0.11, 0.10)), near.size, axis=1)
+            else:  # receptor burn: a black scorch with a brown halo
+                mask = np.clip(0.5 + (r32 - d) / p, 0.0, 1.0)
+                col = lerp3((0.06, 0.05, 0.05), (0.42, 0.33, 0.24),
+                            np.clip(d / r32, 0.0, 1.0) ** 2)
+            sub = take_cols(out, near)
+            if out is albedo:
+                out = albedo.copy()
+            put_cols(out, near, blend(sub, col, mask))
+            if ids is None:
+                ids = np.full(span.size, -1, dtype=np.int16)
+            ids[near[mask > 0.5]] = k
+        return out, ids
 
     def blade_surface(self, albedo: F32, span: F32, L: np.float32, chord: F32,
                       chord_m: F32) -> F32:
@@ -365,8 +457,10 @@ class Painter:
         ]
         for i, tip in enumerate(tb.tips):
             parts.append((float(np.linalg.norm(0.5 * (tb.hub + tip) - fr.o)), 3, i))
+        self.primary = primary
         for _, kind, i in sorted(parts, key=lambda p: -p[0]):
             self.code = (kind + 1 + i) if primary else LABEL_OTHER
+            self.blade = i if kind == 3 else -1
             if kind == 0:
                 self.tube(tb.base, np.array([0.0, 0.0, 1.0]), float(top[2] - tb.base[2]),
                           "tower", tb, np.array([1.0, 0.0, 0.0]))

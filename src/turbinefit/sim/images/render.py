@@ -57,9 +57,34 @@ def render_image_and_depth(
     """:func:`render_image` (same arguments, same image) and its depth: (H, W) float32,
     the distance [m] along each pixel's ray to the nearest turbine surface (of any turbine
     of the scene) covering most of the pixel, inf where none does (sky, terrain)."""
+    image, depth, _ = _render(camera, world_T_cam, turbine, scene, rng, geometry, False)
+    return image, depth
+
+
+def render_photo(
+    camera: PinholeCamera,
+    world_T_cam: SE3,
+    turbine: ArrayLike,
+    scene: Scene,
+    rng: np.random.Generator,
+    geometry: TurbineGeometry = PAPER_GEOMETRY,
+) -> tuple[NDArray[np.uint8], TurbineLabels]:
+    """:func:`render_image` (same arguments, same image) and, from the same pass, what
+    each pixel shows (:func:`render_labels`' labels, with the landscape and clutter in
+    front hiding what they cover, and :attr:`TurbineLabels.defect`)."""
+    image, _, labels = _render(camera, world_T_cam, turbine, scene, rng, geometry, True)
+    assert labels is not None
+    return image, labels
+
+
+def _render(camera: PinholeCamera, world_T_cam: SE3, turbine: ArrayLike, scene: Scene,
+            rng: np.random.Generator, geometry: TurbineGeometry, labels: bool
+            ) -> tuple[NDArray[np.uint8], NDArray[np.float32], TurbineLabels | None]:
     if world_T_cam.batch_shape != ():
         raise ValueError(f"expected one pose, got batch {world_T_cam.batch_shape}")
     fr = Frame(camera, world_T_cam, scene)
+    if labels:
+        fr.enable_labels()
     land = Landscape(fr)
     thetas = [np.asarray(turbine, dtype=np.float64).ravel(), *map(np.asarray, scene.neighbours)]
     doors = np.random.default_rng(scene.seed).uniform(-math.pi, math.pi, len(thetas))
@@ -68,12 +93,24 @@ def render_image_and_depth(
     land.paint()
     painter = Painter(fr, scene)
     painter.clutter(scene.clutter)
-    for tb in sorted(turbines, key=lambda q: -float(np.linalg.norm(q.centre - fr.o))):
-        painter.turbine(tb)
+    for k in sorted(range(len(turbines)),
+                    key=lambda q: -float(np.linalg.norm(turbines[q].centre - fr.o))):
+        painter.turbine(turbines[k], primary=k == 0)
     img = fr.C.reshape(3, camera.height, camera.width)
     np.nan_to_num(img, copy=False, nan=0.5, posinf=1.0, neginf=0.0)
     depth = fr.Z.reshape(camera.height, camera.width).copy()
-    return apply_effects(img, fr.rn, scene.effects, rng), depth
+    return apply_effects(img, fr.rn, scene.effects, rng), depth, _labels(fr, depth)
+
+
+def _labels(fr: Frame, depth: NDArray[np.float32]) -> TurbineLabels | None:
+    """The labels a frame recorded (None: it recorded none)."""
+    if fr.labels is None:
+        return None
+    shape = (fr.H, fr.W)
+    part, span, angle = fr.labels
+    defect = None if fr.defect_labels is None else fr.defect_labels.reshape(shape)
+    return TurbineLabels(part.reshape(shape), span.reshape(shape), angle.reshape(shape),
+                         depth, defect)
 
 
 @dataclass
@@ -92,12 +129,15 @@ class TurbineLabels:
             The renderer's blades are symmetric about their chord and its pitch turns the
             chord the other way round: a scene pitch ``p`` is a pitch ``-p`` there.
         depth: ray distance [m] of the labelled surface (inf: none).
+        defect: index into ``scene.defects`` of the defect covering most of the pixel
+            (-1: none).
     """
 
     part: NDArray[np.int8]
     span: NDArray[np.float32]
     side_angle: NDArray[np.float32]
     depth: NDArray[np.float32]
+    defect: NDArray[np.int16] | None = None
 
 
 def render_labels(camera: PinholeCamera, world_T_cam: SE3, turbine: ArrayLike, scene: Scene,
@@ -118,11 +158,9 @@ def render_labels(camera: PinholeCamera, world_T_cam: SE3, turbine: ArrayLike, s
     for k in sorted(range(len(turbines)),
                     key=lambda q: -float(np.linalg.norm(turbines[q].centre - fr.o))):
         painter.turbine(turbines[k], primary=k == 0)
-    assert fr.labels is not None
-    shape = (camera.height, camera.width)
-    part, span, angle = fr.labels
-    return TurbineLabels(part.reshape(shape), span.reshape(shape), angle.reshape(shape),
-                         fr.Z.reshape(shape).copy())
+    out = _labels(fr, fr.Z.reshape(camera.height, camera.width).copy())
+    assert out is not None
+    return out
 
 
 def points_in_sight(camera: PinholeCamera, world_T_cam: SE3, world_p: ArrayLike,
@@ -164,7 +202,13 @@ def render_flight_images(
     n = poses.batch_shape[0]
     theta = np.asarray(turbine, dtype=np.float64).ravel()
     scene = flight_scene(theta, seed)
-    _, frames_ss = np.random.SeedSequence(seed).spawn(2)
-    rngs = [np.random.default_rng(s) for s in frames_ss.spawn(n)]
     for k in tqdm(range(n), desc="rendering images", unit="img", disable=not progress):
-        yield render_image(camera, poses[k], theta, scene, rngs[k], geometry)
+        yield render_image(camera, poses[k], theta, scene, keyframe_rng(seed, k), geometry)
+
+
+def keyframe_rng(seed: int, k: int) -> np.random.Generator:
+    """The generator of keyframe ``k``'s camera effects in the flight of ``seed``: child
+    ``k`` of the second child of ``SeedSequence(seed)`` (whatever the flight's length)."""
+    _, frames_ss = np.random.SeedSequence(seed).spawn(2)
+    return np.random.default_rng(np.random.SeedSequence(
+        frames_ss.entropy, spawn_key=(*frames_ss.spawn_key, k)))

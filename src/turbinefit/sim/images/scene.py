@@ -109,9 +109,16 @@ class Scene:
         clutter: line-like things on the ground and in the air (power lines, pylons,
             fences, buildings; :class:`~turbinefit.sim.images.clutter.Clutter`).
         blade_marks: the blades' bond lines and lightning receptors.
+        surface_detail: the look of an inspection's close-ups: the blades' gelcoat
+            mottled at centimetre scales (fading out where a pixel is coarser than the
+            mottling), and the wear on the leading edge of a rotor turning clockwise seen
+            from upwind (:mod:`turbinefit.inspection.surface`'s sides).
+        defects: known defects painted on the primary turbine's blades
+            (:func:`turbinefit.sim.defects.painted_defects`).
 
     Wear, dirt, tower seams, blade marks and clutter are drawn in the CNN's training
-    renders (:func:`sample_scene`), not in simulated flights (:func:`flight_scene`).
+    renders (:func:`sample_scene`), not in simulated flights (:func:`flight_scene`) unless
+    it is asked for their surface (``surface=True``, with ``surface_detail``).
     """
 
     seed: int
@@ -156,6 +163,8 @@ class Scene:
     tower_section: float = 0.0
     clutter: Clutter = NO_CLUTTER
     blade_marks: bool = False
+    surface_detail: bool = False
+    defects: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         if self.terrain not in TERRAINS:
@@ -412,13 +421,19 @@ def sample_scene(rng: np.random.Generator, turbine: TurbineParams) -> Scene:
     return scene
 
 
-def flight_scene(turbine: ArrayLike, seed: int) -> Scene:
+def flight_scene(turbine: ArrayLike, seed: int, surface: bool = False,
+                 defects: tuple[tuple[float, ...], ...] = ()) -> Scene:
     """The :class:`Scene` of the flight simulated with ``seed`` round ``turbine`` (theta):
     the one :func:`render_flight_images` draws every keyframe in (other renderers use it
-    to show the same scene)."""
+    to show the same scene). ``surface``: with the blades' and tower's surface (wear,
+    dirt, seams, receptors, :attr:`Scene.surface_detail`) and the painted ``defects``
+    (an inspection's close-ups); without, the flights' photos stay those the fits from
+    photos were measured on."""
     scene_ss, _ = np.random.SeedSequence(seed).spawn(2)
     theta = np.asarray(turbine, dtype=np.float64).ravel()
     scene = sample_scene(np.random.default_rng(scene_ss), TurbineParams.from_vector(theta))
-    # the flights' photos stay those the fits from photos were measured on
+    if surface:
+        return replace(scene, clutter=NO_CLUTTER, surface_detail=True, defects=defects,
+                       wear=max(scene.wear, 0.3), dirt=min(scene.dirt, 0.5))
     return replace(scene, wear=0.0, dirt=0.0, tower_section=0.0,
-                   clutter=NO_CLUTTER, blade_marks=False)
+                   clutter=NO_CLUTTER, blade_marks=False, defects=defects)
