@@ -81,6 +81,11 @@ def test_path_is_flown_with_gnss_errors_of_each_model(
     assert 0.3 < h < 5.0 and 0.05 < v < 2.0 and 0.05 < rot < 10.0
     h, v, rot = errors["rtk"]
     assert 0.002 < h < 0.06 and 0.002 < v < 0.08 and 0.05 < rot < 10.0
+    # an RTK receiver reports its sigmas with each fix (import dji writes them the same way)
+    assert not (tmp_path / "standard" / "keyframes_sigma.csv").exists()
+    sig = np.loadtxt(tmp_path / "rtk" / "keyframes_sigma.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(sig[:, 0], t_path, atol=1e-6)
+    np.testing.assert_allclose(sig[:, 1:], np.tile([0.015, 0.015, 0.02], (len(t_path), 1)))
 
 
 def test_path_with_vio_odometry(plan_keyframes: Path, tmp_path: Path,

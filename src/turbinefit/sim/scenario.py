@@ -373,5 +373,9 @@ def simulate(cfg: SimConfig | None = None, path: FlightPath | None = None,
         odometry=odometry,
         gt_world_T_cam=gt_poses,
         gt_turbine=gt_turbine,
+        # what an RTK receiver reports with each fix, as import dji writes it
+        # (keyframes_sigma.csv); a receiver without RTK reports none
+        position_sigma=gnss.position_sigma_m if gnss is not None and cfg.gnss == "rtk"
+        else None,
     )
     return Simulation(flight, gnss, defects)
