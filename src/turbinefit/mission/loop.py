@@ -1,0 +1,534 @@
+"""The autonomous inspection, simulated in the loop: fly an approach orbit, estimate the
+turbine, plan, then fly the plan waypoint by waypoint while the tracker corrects the
+drone's pose and the turbine, replanning the rest of the path from the current estimate.
+
+**The world.** A true turbine of a preset type (:mod:`turbinefit.sim.turbines`; heading,
+blade rotation and base drawn from the seed) with known defects painted on its blades
+(:func:`~turbinefit.sim.defects.draw_defects`), and what the operator types in before the
+flight: the true turbine off by up to ``InitialError`` (heading and blade rotation +-5 deg,
+base +-3 m, sizes +-5 %, uniform). The drone records a GNSS pose with every photo
+(:class:`~turbinefit.sim.gnss.GnssReceiver`: metre-level and slowly varying with
+``standard`` GNSS, centimetres with ``rtk``, a compass yaw bias of a few degrees either
+way).
+
+**How the drone flies.** A waypoint is a camera pose in the frame the plan was made in:
+the frame of the turbine estimate, which the tracker anchors to the first keyframe's
+recorded pose. The drone flies until the pose its navigation believes it has is the
+waypoint's; its true pose is that minus the GNSS error of the moment
+(``recorded = true + error``, so the recorded pose is the one commanded):
+
+* **open loop** (``closed_loop=False``, as inspections are flown today): the navigation
+  believes the GNSS, and the first plan is flown to the end;
+* **closed loop**: after each photo the tracker's estimate of that keyframe's pose gives
+  the navigation its correction (the recorded position minus the estimated one, and the
+  rotation between them), applied to every later command until the next photo; and when
+  the turbine estimate has moved by more than ``replan_m`` at any model point since the
+  plan in use was made, the stations not yet photographed are planned again from it,
+  starting where the drone is (:func:`~turbinefit.inspection.plan.plan_path` with
+  ``done`` and ``start``), with the stand-off kept from the current estimate.
+
+**Photos and heat-maps.** Each photo is rendered at the true pose with the camera scaled
+to ``photo_width`` pixels wide (:class:`~turbinefit.sim.photos.FlightPhotos`: the scene,
+the defects and the boxes of those in view); coverage and resolution are judged at the
+camera's full size. The heat-maps are the CNN's on the photo (``maps="photos"``, the
+shipped model through onnxruntime, at its own resolution) or the simulator's ideal ones
+(``maps="ideal"``: a fast stand-in for tests and for separating the loop from the net).
+
+**The approach.** ``orbit_photos`` photos on a circle round the estimated tower at the
+hub's height, far enough for the rotor to fill the frame's short side; the initial turbine
+is estimated from them (:func:`~turbinefit.solver.init.initial_turbine`, near the typed-in
+base, which fills in a parameter the images do not determine), then refined by a batch
+fit of the orbit (:func:`~turbinefit.solver.fit.fit`), and the tracker starts from it.
+
+Written here rather than with a robotics simulator (Gazebo, AirSim): what is simulated
+is not flight dynamics but where the drone is when it takes each photo, given what it
+believes; the renderer, the GNSS model, the planner and the tracker are the project's own.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import SE3, quat_exp, quat_multiply, world_T_cam_from_angles
+from turbinefit.heatmaps import HeatmapStack
+from turbinefit.inspection.clearance import SolidSamples, solid_samples
+from turbinefit.inspection.defects import Defect
+from turbinefit.inspection.plan import Plan, PlanError, PlanOptions, Waypoint, plan_path
+from turbinefit.inspection.surface import TurbineSurface
+from turbinefit.sim.defects import draw_defects
+from turbinefit.sim.gnss import GnssReceiver, gnss_model
+from turbinefit.sim.photos import DefectBox, FlightPhotos
+from turbinefit.sim.render import RenderConfig, render_heatmaps
+from turbinefit.sim.scenario import DEFAULT_HEATMAP_NOISE
+from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
+from turbinefit.sim.turbines import preset_turbine
+from turbinefit.solver.config import PHOTO_FIT_DEFAULTS, FitConfig
+from turbinefit.solver.init import NotDetermined, TurbinePrior, initial_turbine
+from turbinefit.solver.tracker import Tracker, TrackerConfig
+from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineParams, model_points
+
+FloatArray = NDArray[np.float64]
+
+#: The inspection camera of the benchmarks: 20 MP, a 50 mm lens on a full-frame sensor
+#: (a DJI Zenmuse P1-like camera; 1.36 mm/px at 10 m).
+MISSION_CAMERA = PinholeCamera(5280, 3956, 7350.0, 7350.0, 2639.5, 1977.5)
+#: Kinds of heat-maps a mission reads (module docstring).
+MAP_KINDS = ("photos", "ideal")
+#: Width [px] of the heat-maps (the shipped CNN's output for a 320 px photo).
+MAP_WIDTH = 160
+#: Streams of the mission's random numbers (spawned from the seed, in this order).
+_STREAMS = ("turbine", "initial", "defects", "gnss", "maps")
+
+
+@dataclass(frozen=True)
+class InitialError:
+    """How far the typed-in turbine is from the truth: each parameter off by a uniform
+    draw within +- these (sizes as a fraction of the true ones)."""
+
+    heading_deg: float = 5.0
+    blade_rotation_deg: float = 5.0
+    base_m: float = 3.0
+    size: float = 0.05
+
+    def draw(self, truth: TurbineParams, rng: np.random.Generator) -> TurbineParams:
+        """The typed-in turbine for ``truth``."""
+        u = rng.uniform(-1.0, 1.0, size=7)
+        return TurbineParams(
+            truth.base_x + self.base_m * u[0], truth.base_y + self.base_m * u[1],
+            truth.tower_height * (1.0 + self.size * u[2]),
+            truth.heading + math.radians(self.heading_deg) * u[3],
+            truth.nacelle_length * (1.0 + self.size * u[4]),
+            truth.blade_rotation + math.radians(self.blade_rotation_deg) * u[5],
+            truth.blade_length * (1.0 + self.size * u[6]))
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    """Everything that defines a simulated mission (module docstring).
+
+    Attributes:
+        turbine: the turbine type (:data:`turbinefit.sim.turbines.PRESETS`).
+        seed: random seed; the same configuration and seed give the same mission.
+        standoff: the plan's stand-off [m].
+        gsd_mm: the resolution each side must be seen at [mm/px].
+        gnss: ``standard`` or ``rtk`` (:data:`turbinefit.sim.gnss.GNSS_MODELS`).
+        camera: the inspection camera (coverage and resolution at its full size).
+        photo_width: width [px] the photos are rendered at (the camera scaled).
+        closed_loop: correct the navigation and replan from the tracker (else: fly the
+            first plan on GNSS alone).
+        defects: how many known defects are painted on the blades.
+        maps: ``photos`` (the CNN on the rendered photos) or ``ideal`` (the simulator's).
+        orbit_photos: photos of the approach orbit.
+        initial_error: how far the typed-in turbine is from the truth.
+        max_gimbal_up_deg: the gimbal's largest upward pitch [deg].
+        replan_m: replan when the turbine estimate's model points moved this far [m].
+        speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
+        tracker: the tracker's options (its cost: the defaults for photos).
+    """
+
+    turbine: str = "nrel5mw"
+    seed: int = 0
+    standoff: float = 10.0
+    gsd_mm: float = 2.0
+    gnss: str = "standard"
+    camera: PinholeCamera = MISSION_CAMERA
+    photo_width: int = 320
+    closed_loop: bool = True
+    defects: int = 12
+    maps: Literal["photos", "ideal"] = "photos"
+    orbit_photos: int = 24
+    initial_error: InitialError = field(default_factory=InitialError)
+    max_gimbal_up_deg: float = 90.0
+    replan_m: float = 0.3
+    speed_m_s: float = 4.0
+    photo_s: float = 2.0
+    tracker: TrackerConfig = field(default_factory=lambda: TrackerConfig(
+        fit=replace(FitConfig(), **PHOTO_FIT_DEFAULTS)))
+
+    def __post_init__(self) -> None:
+        if self.turbine not in TURBINE_PRESETS:
+            raise ValueError(f"unknown turbine type {self.turbine!r}; choose from "
+                             f"{', '.join(TURBINE_PRESETS)}")
+        if self.maps not in MAP_KINDS:
+            raise ValueError(f"maps must be one of {', '.join(MAP_KINDS)}, got {self.maps!r}")
+        gnss_model(self.gnss)
+        if self.orbit_photos < 8:
+            raise ValueError(f"orbit_photos must be at least 8, got {self.orbit_photos}")
+        if not 32 <= self.photo_width <= self.camera.width:
+            raise ValueError(f"photo_width must be between 32 and the camera's width "
+                             f"({self.camera.width}), got {self.photo_width}")
+
+    def photo_camera(self) -> PinholeCamera:
+        """The camera the photos are rendered with (:attr:`camera` scaled)."""
+        h = max(24, round(self.camera.height * self.photo_width / self.camera.width))
+        return self.camera.scaled_to(self.photo_width, h)
+
+    def map_camera(self) -> PinholeCamera:
+        """The heat-maps' camera (:attr:`camera` scaled to :data:`MAP_WIDTH` wide)."""
+        h = max(24, round(self.camera.height * MAP_WIDTH / self.camera.width))
+        return self.camera.scaled_to(MAP_WIDTH, h)
+
+
+@dataclass
+class Keyframe:
+    """One photo of the mission.
+
+    Attributes:
+        index: its number; timestamp: when it was taken [s].
+        stage: ``orbit`` or ``inspection``.
+        true: the camera's true pose; recorded: the pose its GNSS fix recorded.
+        position_sigma: (3,) the fix's reported position standard deviations [m].
+        causal: the tracker's estimate of the pose as the photo arrived (None: before the
+            tracker started).
+        waypoint: the plan's waypoint it was taken at (None: orbit).
+        boxes: the known defects in view (boxes in the rendered photo's pixels).
+        update_s: the tracker's update time, detection included [s] (None: orbit).
+    """
+
+    index: int
+    timestamp: float
+    stage: str
+    true: SE3
+    recorded: SE3
+    position_sigma: FloatArray
+    heatmaps: NDArray[np.float32]
+    image: NDArray[np.uint8] | None = None
+    causal: SE3 | None = None
+    waypoint: Waypoint | None = None
+    boxes: tuple[DefectBox, ...] = ()
+    update_s: float | None = None
+
+
+@dataclass
+class Mission:
+    """What happened in a simulated mission (:func:`run_mission`).
+
+    Attributes:
+        config: its configuration.
+        truth: the true turbine; typed_in: the operator's turbine; initial: the turbine
+            estimated from the approach orbit (the first plan's).
+        defects: the known defects.
+        keyframes: every photo in order (the orbit's first).
+        path_true, path_recorded: (M, 3) every position flown (waypoints and transit
+            points, the orbit's included), true and as the GNSS recorded it [m].
+        path_estimated: (M, 3) where the navigation believed it was.
+        plans: the plans flown (the first, then each replan).
+        replans: how many times the rest of the path was planned again.
+        replan_failures: replans the planner refused (the previous plan was kept).
+        tracker: the tracker at the end of the flight.
+        init_note: how the initial turbine was found.
+        timings: seconds per stage.
+    """
+
+    config: MissionConfig
+    truth: TurbineParams
+    typed_in: TurbineParams
+    initial: TurbineParams
+    defects: list[Defect]
+    keyframes: list[Keyframe]
+    path_true: FloatArray
+    path_recorded: FloatArray
+    path_estimated: FloatArray
+    plans: list[Plan]
+    replans: int
+    replan_failures: int
+    tracker: Tracker
+    init_note: str
+    timings: dict[str, float]
+
+    @property
+    def inspection(self) -> list[Keyframe]:
+        return [k for k in self.keyframes if k.stage == "inspection"]
+
+
+# ---- the drone's navigation ---------------------------------------------------------------
+
+
+def _pose(w: Waypoint) -> SE3:
+    return world_T_cam_from_angles(np.asarray(w.position, dtype=np.float64), w.yaw, w.pitch,
+                                   0.0)
+
+
+def _remove_error(recorded: SE3, position_error: FloatArray, rotation_error: FloatArray
+                  ) -> SE3:
+    """The true pose whose GNSS fix, with these errors, records ``recorded``."""
+    q = quat_multiply(quat_exp(-np.asarray(rotation_error)), recorded.wxyz)
+    q = q / np.linalg.norm(q)
+    return SE3(np.concatenate([q, recorded.translation - position_error]))
+
+
+class Navigation:
+    """What the drone believes of its pose: its GNSS fix, corrected in closed loop by the
+    tracker's estimate of the last photo's pose (module docstring)."""
+
+    def __init__(self, closed_loop: bool) -> None:
+        self.closed_loop = closed_loop
+        self.dp = np.zeros(3)
+        self.dq = np.array([1.0, 0.0, 0.0, 0.0])
+
+    def command(self, target: SE3) -> SE3:
+        """The pose to fly to (as the GNSS will record it) to be at ``target`` in the
+        estimate's frame."""
+        q = quat_multiply(self.dq, target.wxyz)
+        return SE3(np.concatenate([q / np.linalg.norm(q), target.translation + self.dp]))
+
+    def believed(self, recorded: SE3) -> SE3:
+        """Where the drone believes it is when its GNSS records ``recorded``."""
+        q = quat_multiply(self.dq * np.array([1.0, -1.0, -1.0, -1.0]), recorded.wxyz)
+        return SE3(np.concatenate([q / np.linalg.norm(q), recorded.translation - self.dp]))
+
+    def correct(self, recorded: SE3, estimated: SE3) -> None:
+        """The tracker estimated the pose recorded as ``recorded`` to be ``estimated``."""
+        if not self.closed_loop:
+            return
+        self.dp = recorded.translation - estimated.translation
+        conj = estimated.wxyz * np.array([1.0, -1.0, -1.0, -1.0])
+        dq = quat_multiply(recorded.wxyz, conj)
+        self.dq = dq / np.linalg.norm(dq)
+
+
+# ---- the mission ----------------------------------------------------------------------------
+
+
+def orbit_poses(turbine: TurbineParams, camera: PinholeCamera, n: int) -> SE3:
+    """``n`` cameras on a circle round ``turbine``'s tower at its hub's height, looking at
+    the hub, far enough that the rotor (and a margin) fills the frame's short side; the
+    first straight upwind."""
+    pts, _ = model_points(turbine.to_vector())
+    hub = pts[2]
+    half = min(camera.width / camera.fx, camera.height / camera.fy) / 2.0  # tan(half fov)
+    radius = 1.15 * (abs(turbine.blade_length) + abs(turbine.nacelle_length)) / half
+    a = turbine.heading + 2.0 * math.pi * np.arange(n) / n
+    pos = np.stack([hub[0] + radius * np.cos(a), hub[1] + radius * np.sin(a),
+                    np.full(n, hub[2])], axis=1)
+    view = hub[None] - pos
+    yaw = np.arctan2(view[:, 1], view[:, 0])
+    return world_T_cam_from_angles(pos, yaw, np.zeros(n), 0.0)
+
+
+def _moved(a: TurbineParams, b: TurbineParams) -> float:
+    """The largest distance between the model points of two turbines [m] (tips matched
+    modulo the blades' symmetry)."""
+    pa, _ = model_points(a.to_vector())
+    pb, _ = model_points(b.to_vector())
+    d = float(np.max(np.linalg.norm(pa[:3] - pb[:3], axis=1)))
+    tips = np.linalg.norm(pa[3:, None] - pb[None, 3:], axis=-1)
+    return max(d, float(tips.min(axis=1).max()))
+
+
+class _Maps:
+    """The heat-maps of a photo: the CNN's (on the rendered photo) or the simulator's."""
+
+    def __init__(self, cfg: MissionConfig, truth: TurbineParams,
+                 rng: np.random.Generator) -> None:
+        self.kind = cfg.maps
+        self.camera = cfg.map_camera()
+        self.truth = truth.to_vector()
+        self.rng = rng
+        self.detector = None
+        if self.kind == "photos":
+            from turbinefit.detect import HeatmapDetector
+
+            self.detector = HeatmapDetector()
+        k = self.camera.width / 320.0
+        noise = replace(DEFAULT_HEATMAP_NOISE, spurious_length_px=tuple(
+            v * k for v in DEFAULT_HEATMAP_NOISE.spurious_length_px))
+        self.render = RenderConfig(sigma_px=2.0 * k, noise=noise)
+
+    def __call__(self, image: NDArray[np.uint8] | None, true: SE3) -> NDArray[np.float32]:
+        if self.detector is not None:
+            assert image is not None
+            return self.detector.detect(image, size=(self.camera.width, self.camera.height))
+        return render_heatmaps(self.camera, true, self.truth, PAPER_GEOMETRY, self.render,
+                               self.rng)
+
+
+def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | None = None
+                ) -> Mission:
+    """Simulate one inspection mission (module docstring). ``progress(stage, done,
+    total)`` is called after each photo."""
+    t_start = time.perf_counter()
+    timings = {"render_s": 0.0, "maps_s": 0.0, "track_s": 0.0, "plan_s": 0.0}
+    streams = dict(zip(_STREAMS, (np.random.default_rng(s) for s in np.random.SeedSequence(
+        cfg.seed).spawn(len(_STREAMS))), strict=True))
+    truth = preset_turbine(cfg.turbine, streams["turbine"])
+    typed_in = cfg.initial_error.draw(truth, streams["initial"])
+    defects = draw_defects(cfg.defects, truth, streams["defects"]) if cfg.defects else []
+    photos = FlightPhotos(cfg.photo_camera(), truth, cfg.seed, defects=defects,
+                          surface=True)
+    maps_of = _Maps(cfg, truth, streams["maps"])
+    receiver = GnssReceiver(gnss_model(cfg.gnss), streams["gnss"])
+    rtk = cfg.gnss == "rtk"
+    nav = Navigation(cfg.closed_loop)
+    keyframes: list[Keyframe] = []
+    path_true: list[FloatArray] = []
+    path_rec: list[FloatArray] = []
+    path_est: list[FloatArray] = []
+    clock = [0.0]
+    last = [None]  # the last commanded position
+
+    def fly(target: SE3, photo: bool, stage: str, waypoint: Waypoint | None) -> Keyframe | None:
+        """Fly to ``target`` (in the estimate's frame) and, with ``photo``, take one."""
+        cmd = nav.command(target)
+        p = cmd.translation
+        if last[0] is not None:
+            clock[0] += float(np.linalg.norm(p - last[0])) / cfg.speed_m_s
+        last[0] = p
+        clock[0] += cfg.photo_s if photo else 0.5
+        fix = receiver.measure(clock[0], cmd)
+        true = _remove_error(cmd, fix.position_error_m, fix.rotation_error)
+        path_true.append(true.translation)
+        path_rec.append(cmd.translation)
+        path_est.append(target.translation)
+        if not photo:
+            return None
+        k = len(keyframes)
+        t0 = time.perf_counter()
+        shot = photos.photo(k, true) if cfg.maps == "photos" or defects else None
+        timings["render_s"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        maps = maps_of(None if shot is None else shot.image, true)
+        dt_maps = time.perf_counter() - t0
+        timings["maps_s"] += dt_maps
+        kf = Keyframe(k, clock[0], stage, true, cmd, fix.position_sigma_m.copy(), maps,
+                      None if shot is None else shot.image, waypoint=waypoint,
+                      boxes=() if shot is None else shot.boxes)
+        kf.update_s = dt_maps
+        keyframes.append(kf)
+        return kf
+
+    # -- the approach orbit, on GNSS alone
+    orbit = orbit_poses(typed_in, cfg.camera, cfg.orbit_photos)
+    for i in range(cfg.orbit_photos):
+        fly(orbit[i], True, "orbit", None)
+        if progress is not None:
+            progress("orbit", i + 1, cfg.orbit_photos)
+    timings["orbit_s"] = time.perf_counter() - t_start
+
+    # -- the initial turbine: init near the typed-in base, refined by a fit of the orbit
+    t0 = time.perf_counter()
+    map_cam = cfg.map_camera()
+    stack = HeatmapStack(np.stack([k.heatmaps for k in keyframes]))
+    recorded = SE3(np.stack([k.recorded.wxyz_xyz for k in keyframes]))
+    initial, init_note = _initial_turbine(stack, map_cam, recorded, typed_in, cfg)
+    tracker = Tracker(map_cam, initial, cfg.tracker)
+    for kf in keyframes:
+        kf.causal = tracker.update(kf.timestamp, kf.recorded, kf.heatmaps,
+                                   position_sigma=kf.position_sigma if rtk else None
+                                   ).world_T_cam
+    nav.correct(keyframes[-1].recorded, tracker.world_T_cam()[len(keyframes) - 1])
+    timings["init_s"] = time.perf_counter() - t0
+
+    # -- the plan, then waypoint by waypoint
+    options = PlanOptions(cfg.standoff, cfg.gsd_mm, max_gimbal_up_deg=cfg.max_gimbal_up_deg)
+    t0 = time.perf_counter()
+    planned_for = tracker.turbine
+    here = nav.believed(keyframes[-1].recorded).translation
+    plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
+    timings["plan_s"] += time.perf_counter() - t0
+    plans = [plan]
+    done: set[tuple[int, int, float]] = set()
+    replans = failures = 0
+    queue = list(plan.waypoints[1:])
+    total = len(plan.photos)
+    while queue:
+        w = queue.pop(0)
+        kf = fly(_pose(w), w.photo, "inspection", w)
+        if kf is None:
+            continue
+        t0 = time.perf_counter()
+        est = tracker.update(kf.timestamp, kf.recorded, kf.heatmaps,
+                             position_sigma=kf.position_sigma if rtk else None)
+        kf.update_s = (kf.update_s or 0.0) + time.perf_counter() - t0
+        timings["track_s"] += time.perf_counter() - t0
+        kf.causal = est.world_T_cam
+        nav.correct(kf.recorded, est.world_T_cam)
+        done.add((w.part, w.side, round(w.span, 6)))
+        if progress is not None:
+            progress("inspection", len(done), total)
+        if not cfg.closed_loop or _moved(planned_for, tracker.turbine) < cfg.replan_m:
+            continue
+        t0 = time.perf_counter()
+        try:
+            surface = TurbineSurface(tracker.turbine)
+            again = _replan(surface, cfg, options, done, plan, w,
+                            nav.believed(kf.recorded).translation)
+        except PlanError:
+            failures += 1
+            again = None
+        timings["plan_s"] += time.perf_counter() - t0
+        if again is None:
+            continue
+        replans += 1
+        planned_for = tracker.turbine
+        plan = again
+        plans.append(plan)
+        queue = list(plan.waypoints[1:])
+        total = len(done) + len(plan.photos)
+    timings["total_s"] = time.perf_counter() - t_start
+    return Mission(cfg, truth, typed_in, initial, defects, keyframes, np.array(path_true),
+                   np.array(path_rec), np.array(path_est), plans, replans, failures,
+                   tracker, init_note, timings)
+
+
+def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
+            done: set[tuple[int, int, float]], previous: Plan, at: Waypoint,
+            here: FloatArray) -> Plan | None:
+    """The rest of the path planned again from ``surface`` (the current estimate): the
+    stations of ``previous`` photographed (``done``) left out by their part, side and span
+    within half a station's spacing. None if nothing is left to photograph."""
+    spacing = _spacing(previous)
+
+    def photographed(part: int, side: int, span: float) -> bool:
+        return any(p == part and s == side and abs(x - span) < 0.5 * spacing.get((p, s), 1.0)
+                   for p, s, x in done)
+
+    plan = plan_path(surface, cfg.camera, options, start=here, done=photographed)
+    return plan if plan.photos else None
+
+
+def _spacing(plan: Plan) -> dict[tuple[int, int], float]:
+    """The spacing [m] of each side's stations in ``plan`` (their least difference)."""
+    out: dict[tuple[int, int], list[float]] = {}
+    for w in plan.photos:
+        out.setdefault((w.part, w.side), []).append(w.span)
+    gaps = {}
+    for key, spans in out.items():
+        s = np.sort(np.asarray(spans))
+        d = np.diff(s)
+        d = d[d > 1e-6]
+        gaps[key] = float(d.min()) if d.size else 1.0
+    return gaps
+
+
+def _initial_turbine(heatmaps: HeatmapStack, camera: PinholeCamera, world_T_cam: SE3,
+                     typed_in: TurbineParams, cfg: MissionConfig) -> tuple[TurbineParams, str]:
+    """The turbine the plan starts from: ``init`` on the orbit (near the typed-in base,
+    with its sizes as the type's), then a batch fit of the orbit; what ``init`` cannot
+    determine is the typed-in value."""
+    from turbinefit.flight import Flight
+    from turbinefit.solver.fit import fit
+
+    prior = TurbinePrior(near_xy=(typed_in.base_x, typed_in.base_y),
+                         hub_height=typed_in.tower_height, blade_length=typed_in.blade_length,
+                         nacelle_length=typed_in.nacelle_length)
+    try:
+        start = initial_turbine(heatmaps, camera, world_T_cam, prior).turbine
+        note = "init from the approach orbit"
+    except NotDetermined as e:
+        start = typed_in
+        note = f"the typed-in turbine (init: {e})"
+    flight = Flight(camera=camera, timestamps=np.arange(len(heatmaps), dtype=np.float64),
+                    world_T_cam=world_T_cam, heatmaps=heatmaps, turbine=start)
+    result = fit(flight, cfg.tracker.fit)
+    if result.verdict == "failed":
+        return start, note + "; the orbit's fit failed, not used"
+    return result.turbine, note + ", refined by a fit of the orbit"
