@@ -77,7 +77,7 @@ def _signals(**kw: object) -> Signals:
     ({"theta": TurbineParams(0, 0, 60.0, 1.0, 5.0, 0.3, 63.0)}, "failed", "hit the ground"),
     ({"theta_std": np.array([0.5, 0.5, 4.0, 0.003, 0.05, 0.002, 0.2])}, "doubtful",
      "tower_height standard deviation 4.00 m"),
-    ({"theta_std": None}, "doubtful", "singular"),
+    ({"theta_std": None}, "failed", "singular"),
 ])
 def test_judge(change: dict, expected: str, words: str) -> None:
     v, reasons = judge(_signals(**change))
