@@ -98,9 +98,9 @@ def nees(estimate: TurbineParams, truth: TurbineParams, cov: np.ndarray | None
 def posterior_verdict(signals: Signals, posterior: np.ndarray | None) -> str:
     """The verdict the tracker got before its covariance followed the fit's rule: the same
     signals with the standard deviations of the last update's posterior (start-up prior
-    included)."""
+    included), without theta's distance from the optimum."""
     std = None if posterior is None else np.sqrt(np.maximum(np.diag(posterior), 0.0))
-    return judge(dataclasses.replace(signals, theta_std=std))[0]
+    return judge(dataclasses.replace(signals, theta_std=std, theta_step_sigmas=None))[0]
 
 
 def track_flight(flight: Flight, fc: FitConfig) -> dict[str, Any]:
@@ -118,7 +118,8 @@ def track_flight(flight: Flight, fc: FitConfig) -> dict[str, Any]:
     post = tracker.estimates[-1].theta_covariance
     row: dict[str, Any] = {"verdict": a.verdict, "reasons": a.reasons,
                            "verdict_posterior": posterior_verdict(a.signals, post),
-                           "prior_active_at_end": tracker.theta_prior_active}
+                           "prior_active_at_end": tracker.theta_prior_active,
+                           "signals": a.signals.to_dict()}
     if flight.gt_world_T_cam is not None and flight.gt_turbine is not None:
         acc = accuracy(tracker.world_T_cam(), tracker.turbine, flight.gt_world_T_cam,
                        flight.gt_turbine, fc.geometry)
@@ -190,12 +191,15 @@ def run_length(task: tuple[int, int]) -> dict[str, Any]:
     return {"keyframes": n, "seed": seed,
             "fit": {"verdict": fr.result.verdict, "reasons": fr.result.reasons,
                     "position_m": fr.after.position_error_m,
-                    "nees": nees(fr.result.turbine, gt, fr.result.theta_covariance)},
+                    "nees": nees(fr.result.turbine, gt, fr.result.theta_covariance),
+                    "theta_step_sigmas": fr.result.signals.theta_step_sigmas
+                    if fr.result.signals is not None else None},
             "track": {"verdict": tr.summary.verdict, "reasons": tr.summary.reasons,
                       "verdict_posterior": posterior_verdict(tr.summary.signals, post),
                       "position_m": tr.final.position_error_m,
                       "nees": nees(tr.turbine, gt, tr.theta_covariance),
-                      "nees_posterior": nees(tr.turbine, gt, post)}}
+                      "nees_posterior": nees(tr.turbine, gt, post),
+                      "theta_step_sigmas": tr.summary.signals.theta_step_sigmas}}
 
 
 def nees_stats(values: list[float | None]) -> dict[str, Any]:
@@ -254,8 +258,11 @@ def verdict_shares(rows: list[dict[str, Any]]) -> dict[str, Any]:
     of the joint ones under :data:`GOOD_M`."""
     good = [r for r in rows if r["position_m"] < GOOD_M]
     bad = [r for r in rows if r["position_m"] > BAD_M]
+    steps = [r["signals"].get("theta_step_sigmas") for r in good if r.get("signals")]
     return {"good": len(good), "good_ok_share": sum(r["verdict"] == "ok" for r in good)
             / max(len(good), 1),
+            "good_max_theta_step_sigmas": max((x for x in steps if x is not None),
+                                              default=None),
             "bad": len(bad), "bad_flagged_share": sum(r["verdict"] != "ok" for r in bad)
             / max(len(bad), 1),
             "nees": nees_stats([r["nees"] for r in good if r.get("mode", "joint") == "joint"])}
@@ -322,6 +329,7 @@ def studies(args: argparse.Namespace) -> dict[str, Any]:
         "nees_flights": fits["nees"]["n"], "nees_mean": fits["nees"]["mean"],
         "nees_median": fits["nees"]["median"],
         "nees_in_chi2_95_band": fits["nees"]["in_chi2_95_band"],
+        "good_max_theta_step_sigmas": fits["good_max_theta_step_sigmas"],
         "evidence_free_fits": len(free),
         "evidence_free_failed": sum(r["verdict"] == "failed" for r in free),
         "good_not_ok": [r for r in good if r["verdict"] != "ok"],
@@ -337,6 +345,8 @@ def studies(args: argparse.Namespace) -> dict[str, Any]:
           f"{result['nees_mean']}, median {result['nees_median']}, in the chi-square(7) 95 % "
           f"band {100 * (result['nees_in_chi2_95_band'] or 0.0):.1f} %")
     print(f"evidence-free heat-maps: {result['evidence_free_failed']} of {len(free)} failed")
+    print(f"theta's distance from the optimum, fits under {GOOD_M} m: at most "
+          f"{result['good_max_theta_step_sigmas']} sigma")
     for r in result["good_not_ok"] + result["bad_ok"]:
         print(f"  {r['study']:9s} {r['config']:28s} flight {r['flight']:3d} "
               f"{r['position_m']:7.3f} m {r['verdict']:8s} {r['reasons']}")
@@ -361,7 +371,8 @@ def studies(args: argparse.Namespace) -> dict[str, Any]:
                   f"{100 * s['good_ok_share']:.1f} %; > {BAD_M} m: {s['bad']}, flagged "
                   f"{100 * s['bad_flagged_share']:.1f} %; NEES over {s['nees']['n']}: mean "
                   f"{s['nees']['mean']}, median {s['nees']['median']}, in band "
-                  f"{100 * (s['nees']['in_chi2_95_band'] or 0.0):.1f} %")
+                  f"{100 * (s['nees']['in_chi2_95_band'] or 0.0):.1f} %; distance from the "
+                  f"optimum at most {s['good_max_theta_step_sigmas']} sigma")
         print(f"track verdict = fit verdict on {100 * t['agree_with_fit']:.1f} % of "
               f"{len(tracked)} flights; track ok where fit not: {t['ok_where_fit_not']}; "
               f"evidence-free: {t['evidence_free_failed']} of {len(free)} tracks failed")

@@ -53,9 +53,9 @@ def test_normal_flight_ok_for_both_with_the_same_standard_deviations() -> None:
 
 def short_flight(n: int, seed: int, turbine_scale: float = 1.0) -> Flight:
     """``n`` keyframes whose GPS/IMU steps drift as the pairwise term assumes (0.1 m and
-    0.1 deg per step and axis; the simulator's default spreads 2 m over the flight, 1.2 m
-    per step for two keyframes), the initial turbine ``turbine_scale`` times as far off
-    as the simulator's default."""
+    0.1 deg per step and axis; the simulator's default spreads 2 m and 2 deg over the
+    flight, 1.2 deg per step and axis for two keyframes where the term allows 0.1 deg),
+    the initial turbine ``turbine_scale`` times as far off as the simulator's default."""
     total = 0.1 * math.sqrt(3.0 * max(n - 1, 1))
     return simulated_flight(n, seed=seed, width=320, drift_pos_m=total, drift_rot_deg=total,
                             turbine_sigma=tuple(s * turbine_scale

@@ -27,11 +27,12 @@ units. They are the in-flight posterior, start-up prior included.
 
 The verdict (:meth:`Tracker.assess`) follows the batch fit's rules
 (:mod:`turbinefit.solver.verdict`): the same signals, the same thresholds, and theta's
-covariance by the same function (:func:`~turbinefit.solver.verdict.theta_covariance`) on
-the information the tracker holds from the flight: the window's terms re-linearised at the
-end and the marginal prior, without the start-up prior, which is a regulariser and not
-evidence (with it, a direction of theta no image fixes would look known to the prior's
-sigma; a one-keyframe flight would be ``ok`` where the fit is ``failed``).
+covariance and its distance from the optimum by the same function
+(:func:`~turbinefit.solver.verdict.theta_uncertainty`) on the information the tracker
+holds from the flight: the window's terms re-linearised at the end and the marginal prior,
+without the start-up prior, which is a regulariser and not evidence (with it, a direction
+of theta no image fixes would look known to the prior's sigma; a one-keyframe flight would
+be ``ok`` where the fit is ``failed``).
 
 Start-up: theta begins at its initial value with a Gaussian prior (``theta_sigma``), so
 the first keyframes, which see the turbine from one side only, cannot move it far. The

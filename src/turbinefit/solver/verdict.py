@@ -109,9 +109,9 @@ LENGTH_STD_M = (3.0, 10.0)
 #: (good fits: <= 0.3).
 ANGLE_STD_DEG = (3.0, 10.0)
 #: (doubtful above, failed above) theta's distance from the optimum of the data's cost,
-#: in its standard deviations (good fits: <= 0.2, good tracks <= 1; a one-keyframe track
-#: from a turbine 5x further off than the simulator's default: 4.6-7.4, with errors of
-#: 5-8 sigma).
+#: in its standard deviations (good fits: <= 0.8, good tracks <= 0.5; one-keyframe tracks
+#: from a turbine 5x further off than the simulator's default: 4.6-7.4 on three of eight
+#: flights, with errors of 5.2-8.5 sigma; python benchmarks/bench_verdict.py --track).
 THETA_STEP_SIGMAS = (3.0, 10.0)
 #: A length this close to a bound [m] is on it.
 BOUND_TOLERANCE_M = 1e-6
