@@ -160,9 +160,34 @@ def test_track_from_photos_detects_inside_each_update(photo_flight: Path, tmp_pa
     assert summary["config"]["tracker"]["window"] == 20
     assert summary["num_keyframes"] == 6
     assert not (photo_flight / "heatmaps").exists()
+    capsys.readouterr()  # six 160 px photos leave base x to 4.6 m: doubtful, as fit says
     # a photo of the wrong size: one clear error naming it, nothing written
     photo = photo_flight / "images" / "3.000000.png"
     write_png(photo, np.zeros((60, 80, 3), np.uint8))
     assert main(["track", str(photo_flight), "--out", str(tmp_path / "t2"), "--quiet"]) == 2
     one_line_error(capsys, "3.000000.png", "80x60", "camera.yaml")
     assert not (tmp_path / "t2").exists()
+
+
+def test_one_keyframe_track_fails_as_fit_does(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """One keyframe (seed 4) leaves the base's position unfixed: fit and track both end
+    ``failed`` with exit status 3, for the same reason, with the same standard deviations
+    of the parameters the view does fix (the tracker's start-up prior, counted as
+    information, used to cap the base's at 2 m and call it ``ok``)."""
+    flight = tmp_path / "flight"
+    assert main(["simulate", str(flight), "--keyframes", "1", "--seed", "4", "--quiet"]) == 0
+    summaries = {}
+    for command in ("fit", "track"):
+        assert main([command, str(flight), "--out", str(tmp_path / command), "--no-plots",
+                     "--quiet"]) == 3
+        summaries[command] = json.loads((tmp_path / command / "summary.json").read_text())
+    err = capsys.readouterr().err
+    assert "fit failed" in err and "track failed" in err
+    for s in summaries.values():
+        assert s["verdict"] == "failed"
+        assert any(r.startswith("base_") or "singular" in r for r in s["reasons"]), s["reasons"]
+    fit_std = summaries["fit"]["turbine"]["std"]
+    track_std = summaries["track"]["signals"]["theta_std"]
+    for name in ("tower_height", "blade_rotation", "blade_length"):
+        assert track_std[name] == pytest.approx(fit_std[name], rel=0.3), name

@@ -17,7 +17,7 @@ from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import fit
 from turbinefit.solver.problem import FitProblem
 from turbinefit.solver.rounds import initial_correspondences
-from turbinefit.solver.verdict import Signals, judge, theta_covariance
+from turbinefit.solver.verdict import Signals, judge, theta_covariance, theta_uncertainty
 from turbinefit.turbine.model import THETA_UPPER, TurbineParams
 
 #: the command-line defaults for heat-map files
@@ -77,7 +77,10 @@ def _signals(**kw: object) -> Signals:
     ({"theta": TurbineParams(0, 0, 60.0, 1.0, 5.0, 0.3, 63.0)}, "failed", "hit the ground"),
     ({"theta_std": np.array([0.5, 0.5, 4.0, 0.003, 0.05, 0.002, 0.2])}, "doubtful",
      "tower_height standard deviation 4.00 m"),
-    ({"theta_std": None}, "doubtful", "singular"),
+    ({"theta_std": None}, "failed", "singular"),
+    ({"theta_step_sigmas": 2.0}, "ok", ""),
+    ({"theta_step_sigmas": 5.0}, "doubtful", "theta 5.0 sigma from the optimum"),
+    ({"theta_step_sigmas": 12.0}, "failed", "theta 12.0 sigma from the optimum"),
 ])
 def test_judge(change: dict, expected: str, words: str) -> None:
     v, reasons = judge(_signals(**change))
@@ -148,3 +151,16 @@ def test_theta_covariance_is_the_inverse_hessian(flight) -> None:
     fd = np.linalg.inv(H)[18:, 18:]
     np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(fd)), rtol=0.05)
     assert math.isfinite(float(np.sum(cov)))
+    # at the optimum no step is left; 2 sigma along theta's first principal direction
+    # (poses following as the Hessian says) leaves one of 2 sigma
+    _, step = theta_uncertainty(lin)
+    assert step is not None and step < 0.05
+    w, v = np.linalg.eigh(cov)
+    dt = 2.0 * math.sqrt(w[-1]) * v[:, -1]
+    x = np.linalg.solve(H, np.concatenate([np.zeros(18), np.linalg.solve(fd, dt)]))
+    assert np.allclose(x[18:], dt, rtol=1e-3, atol=1e-9)
+    moved = prob.linearize(poses.retract(np.concatenate([np.zeros((1, 6)),
+                                                           x[:18].reshape(3, 6)])),
+                           theta + dt, corr)
+    _, step = theta_uncertainty(moved)
+    assert step == pytest.approx(2.0, rel=0.1)

@@ -22,7 +22,6 @@ import numpy as np
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
-from turbinefit.flight import Flight
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.io.atomic import write_text_atomic
@@ -43,7 +42,7 @@ from turbinefit.jobs.outputs import (
 )
 from turbinefit.jobs.sources import fit_config_for, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
-from turbinefit.solver.verdict import ImageEvidence, Signals, image_evidence, judge, measure
+from turbinefit.solver.verdict import ImageEvidence, Signals
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_point_error
 
 if TYPE_CHECKING:
@@ -104,7 +103,9 @@ class TrackSummary:
         iterations_mean: mean LM iterations per update.
         theta_prior_active_at_end: whether the start-up prior on theta still acted.
         initial_turbine, final_turbine: the turbine before and after.
-        final_sigma: standard deviation of each turbine parameter at the end (None if the
+        final_sigma: standard deviation of each turbine parameter at the end, by the
+            batch fit's rule without the start-up prior (:meth:`Tracker.theta_covariance
+            <turbinefit.solver.tracker.Tracker.theta_covariance>`; None if the
             information was singular).
         defaults: which fit defaults the options started from (None: a --config file or
             preset).
@@ -182,6 +183,9 @@ class TrackReport:
         turbine: the final turbine.
         latency_ms: (N,) wall time of each keyframe (heat-maps and update) [ms].
         summary: what ``summary.json`` holds.
+        theta_covariance: (7, 7) theta's covariance the verdict was made with (the batch
+            fit's rule, :meth:`Tracker.theta_covariance
+            <turbinefit.solver.tracker.Tracker.theta_covariance>`), or None.
     """
 
     out_dir: Path
@@ -190,6 +194,7 @@ class TrackReport:
     turbine: TurbineParams
     latency_ms: np.ndarray
     summary: TrackSummary
+    theta_covariance: np.ndarray | None = None
 
     @property
     def causal(self) -> Accuracy | None:
@@ -274,16 +279,13 @@ def track_folder(
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3
-        one = Flight(source.camera, folder.timestamps[k:k + 1], SE3(est.world_T_cam.wxyz_xyz[None]),
-                     HeatmapStack([maps]), est.turbine)
-        image.append(image_evidence(one, one.world_T_cam, tracker.theta, tracker.config.fit))
+        image.append(tracker.arrival_evidence())
         if progress is not None:
             progress(est, n)
     cfg = tracker.config  # pair_frame="auto" resolved by the first keyframe
     final_poses = tracker.world_T_cam()
     causal_poses = tracker.causal_world_T_cam()
     turbine = tracker.turbine
-    last = tracker.estimates[-1]
     summary = TrackSummary(
         recorded_path(flight_dir, out), n, (source.camera.width, source.camera.height),
         (f"{source.description} (as each keyframe arrives; its latency includes detection)"
@@ -292,16 +294,13 @@ def track_folder(
         float(np.mean([e.iterations for e in tracker.estimates])),
         tracker.theta_prior_active, initial_turbine, turbine,
         defaults=None if config is not None else source.defaults_name, init=init)
-    if last.theta_covariance is not None:
-        summary.final_sigma = dict(zip(TurbineParams.NAMES,
-                                       np.sqrt(np.diag(last.theta_covariance)).tolist(),
+    verdict = tracker.assess(ImageEvidence.concat(image), poses,
+                             poses if odometry is None else odometry)
+    if verdict.theta_std is not None:
+        summary.final_sigma = dict(zip(TurbineParams.NAMES, verdict.theta_std.tolist(),
                                        strict=True))
-    signals = measure(ImageEvidence.concat(image), poses, final_poses,
-                      poses if odometry is None else odometry,
-                      tracker.theta if cfg.fit.mode == "joint" else None, last.theta_covariance,
-                      cfg.fit, sum(e.iterations for e in tracker.estimates), (last.cost,))
-    summary.signals = signals
-    summary.verdict, summary.reasons = judge(signals)
+    summary.signals = verdict.signals
+    summary.verdict, summary.reasons = verdict.verdict, verdict.reasons
     geometry = cfg.fit.geometry
     gt_poses, gt_turbine = folder.gt_world_T_cam, folder.gt_turbine
     if gt_poses is not None and gt_turbine is not None:
@@ -330,7 +329,8 @@ def track_folder(
                              latency, geometry)
             except OSError as exc:
                 raise plot_error(exc, out) from exc
-    return TrackReport(out, list(tracker.estimates), final_poses, turbine, latency, summary)
+    return TrackReport(out, list(tracker.estimates), final_poses, turbine, latency, summary,
+                       verdict.theta_covariance)
 
 
 def _track_plots(out: Path, folder: FlightFolder, final_poses: SE3, causal_poses: SE3,

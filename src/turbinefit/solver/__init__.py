@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from turbinefit.solver.config import FitConfig as FitConfig
     from turbinefit.solver.fit import FitResult as FitResult
     from turbinefit.solver.problem import FitProblem as FitProblem
+    from turbinefit.solver.tracker import TrackAssessment as TrackAssessment
     from turbinefit.solver.tracker import Tracker as Tracker
     from turbinefit.solver.tracker import TrackerConfig as TrackerConfig
     from turbinefit.solver.tracker import TrackEstimate as TrackEstimate
@@ -27,7 +28,7 @@ _WHERE = {
     "FitResult": "turbinefit.solver.fit",
     "FitProblem": "turbinefit.solver.problem",
     "Tracker": "turbinefit.solver.tracker", "TrackerConfig": "turbinefit.solver.tracker",
-    "TrackEstimate": "turbinefit.solver.tracker",
+    "TrackEstimate": "turbinefit.solver.tracker", "TrackAssessment": "turbinefit.solver.tracker",
 }
 
 __all__ = sorted([*_WHERE, "fit"])

@@ -16,8 +16,9 @@ search changes almost nothing. The heat-map term's
 basin is a few pixels wide, so without the warm-up (``warmup=False``) initial errors of a
 few degrees in heading or blade rotation leave it stranded (see the tests).
 
-At the end, theta's covariance is taken from the normal equations at the estimate (with
-the final correspondences), and the result is judged (:mod:`turbinefit.solver.verdict`):
+At the end, theta's covariance (and how far theta is from the optimum, in its standard
+deviations) is taken from the normal equations at the estimate (with the final
+correspondences), and the result is judged (:mod:`turbinefit.solver.verdict`):
 ``ok``, ``doubtful`` or ``failed``, with reasons and the signals they come from.
 """
 
@@ -44,7 +45,7 @@ from turbinefit.solver.verdict import (
     image_evidence,
     judge,
     measure,
-    theta_covariance,
+    theta_uncertainty,
 )
 from turbinefit.turbine.model import TurbineParams
 
@@ -211,9 +212,9 @@ def _assess(problem: FitProblem, initial: SE3, poses: SE3, theta: FloatArray,
     """theta's covariance and the signals of the estimate ``(poses, theta)``."""
     kf = problem.keyframes
     finite = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(poses.wxyz_xyz)))
-    cov = None
+    cov = step = None
     if finite and problem.optimise_theta:
-        cov = theta_covariance(problem.linearize(poses, theta, corr))
+        cov, step = theta_uncertainty(problem.linearize(poses, theta, corr))
     if finite:
         image = image_evidence(problem.data, poses, theta, problem.config, kf, corr)
     else:
@@ -222,4 +223,4 @@ def _assess(problem: FitProblem, initial: SE3, poses: SE3, theta: FloatArray,
                               problem.data.camera.width)
     return cov, measure(image, initial, poses, problem.data.measurement_poses()[kf],
                         theta if problem.optimise_theta else None, cov, problem.config,
-                        iterations, costs)
+                        iterations, costs, step)

@@ -140,6 +140,36 @@ def solve_arrow(
     return dp, dt
 
 
+def inverse_spd(S: FloatArray) -> FloatArray:
+    """The inverse of a symmetric positive definite matrix, by its Cholesky factor.
+
+    Raises ``numpy.linalg.LinAlgError`` if ``S`` is not positive definite in floating
+    point (a direction with no information, or rounding that made one negative: a plain
+    inverse would then return negative variances) or the inverse is not finite."""
+    L = np.linalg.cholesky(0.5 * (S + S.T))
+    Linv = np.linalg.inv(L)
+    out = Linv.T @ Linv
+    if not np.all(np.isfinite(out)):
+        raise np.linalg.LinAlgError("non-finite inverse")
+    return np.asarray(out, dtype=np.float64)
+
+
+def arrow_theta(
+    D: FloatArray, B: FloatArray, C: FloatArray, E: FloatArray, g_p: FloatArray,
+    g_t: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """theta's information and gradient with the poses eliminated, in O(N).
+
+    Returns ``S = E - C^T A^-1 C`` (symmetrised; its inverse is theta's covariance) and
+    ``r = g_t - C^T A^-1 g_p``: the undamped Gauss-Newton step of :func:`solve_arrow` moves
+    theta by ``-S^-1 r``. Raises ``numpy.linalg.LinAlgError`` if A is singular."""
+    rhs = np.concatenate([g_p[..., None], C], axis=2)  # (N, 6, 8)
+    X = solve_block_tridiagonal(D, B, rhs)
+    S = E - np.einsum("nai,naj->ij", C, X[..., 1:])
+    r = g_t - np.einsum("nai,na->i", C, X[..., 0])
+    return 0.5 * (S + S.T), r
+
+
 def arrow_covariance(
     D: FloatArray, B: FloatArray, C: FloatArray | None, E: FloatArray | None, index: int,
 ) -> tuple[FloatArray, FloatArray | None]:
@@ -149,7 +179,8 @@ def arrow_covariance(
     of :func:`solve_arrow`; only the wanted blocks are formed, in O(N): with
     ``S = E - C^T A^-1 C``, ``cov(theta) = S^-1`` and
     ``cov(x_k) = (A^-1)_kk + (A^-1 C)_k S^-1 (A^-1 C)_k^T``. Raises
-    ``numpy.linalg.LinAlgError`` if the matrix is singular.
+    ``numpy.linalg.LinAlgError`` if the matrix is singular (``S`` not positive definite,
+    :func:`inverse_spd`).
     """
     n = D.shape[0]
     unit = np.zeros((n, 6, 6))
@@ -161,7 +192,7 @@ def arrow_covariance(
     if C is not None and E is not None:
         XC = X[..., 6:]
         S = E - np.einsum("nai,naj->ij", C, XC)
-        cov_t = np.linalg.inv(0.5 * (S + S.T))
+        cov_t = inverse_spd(S)
         cov_p = cov_p + XC[index] @ cov_t @ XC[index].T
     cov_p = 0.5 * (cov_p + cov_p.T)
     if not (np.all(np.isfinite(cov_p)) and (cov_t is None or np.all(np.isfinite(cov_t)))):

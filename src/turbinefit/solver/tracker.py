@@ -22,8 +22,17 @@ keyframes together with theta:
 
 Work per keyframe is therefore bounded by the window, not the flight. The latest pose's
 and theta's marginal covariances come from the window's Gauss-Newton Hessian (with the
-prior): the inverse of the information, in local pose coordinates (m, rad) and theta's
-units.
+priors): the inverse of the information, in local pose coordinates (m, rad) and theta's
+units. They are the in-flight posterior, start-up prior included.
+
+The verdict (:meth:`Tracker.assess`) follows the batch fit's rules
+(:mod:`turbinefit.solver.verdict`): the same signals, the same thresholds, and theta's
+covariance and its distance from the optimum by the same function
+(:func:`~turbinefit.solver.verdict.theta_uncertainty`) on the information the tracker
+holds from the flight: the window's terms re-linearised at the end and the marginal prior,
+without the start-up prior, which is a regulariser and not evidence (with it, a direction
+of theta no image fixes would look known to the prior's sigma; a one-keyframe flight would
+be ``ok`` where the fit is ``failed``).
 
 Start-up: theta begins at its initial value with a Gaussian prior (``theta_sigma``), so
 the first keyframes, which see the turbine from one side only, cannot move it far. The
@@ -59,7 +68,7 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.fit import match_config
-from turbinefit.solver.linalg import arrow_covariance
+from turbinefit.solver.linalg import arrow_covariance, inverse_spd
 from turbinefit.solver.marginal import (
     GaussianPrior,
     PoseConditional,
@@ -68,6 +77,15 @@ from turbinefit.solver.marginal import (
 )
 from turbinefit.solver.problem import FitProblem, Linearization
 from turbinefit.solver.rounds import initial_correspondences, run_rounds
+from turbinefit.solver.verdict import (
+    ImageEvidence,
+    Signals,
+    Verdict,
+    image_evidence,
+    judge,
+    measure,
+    theta_uncertainty,
+)
 from turbinefit.solver.window import TrackWindow
 from turbinefit.turbine.model import TurbineParams
 
@@ -162,8 +180,11 @@ class TrackEstimate:
             frame); zeros if the pose is held fixed (the gauge keyframe); None if the
             information is singular.
         theta_covariance: (7, 7) marginal covariance of theta (units of
-            :class:`TurbineParams`); None with the turbine fixed (``mode="pose"``) or
-            singular information.
+            :class:`TurbineParams`), the in-flight posterior: with the start-up prior
+            while it acts, so never wider than ``theta_sigma``; None with the turbine fixed
+            (``mode="pose"``) or singular information. The verdict's covariance, by the
+            batch fit's rule without the start-up prior, is
+            :meth:`Tracker.theta_covariance`.
         cost: the window's cost after the update.
         iterations: LM iterations spent.
         window: keyframes in the window during the update.
@@ -192,6 +213,29 @@ class TrackEstimate:
         if self.pose_covariance is None:
             return None
         return float(math.sqrt(max(float(np.trace(self.pose_covariance[:3, :3])), 0.0) / 3.0))
+
+
+@dataclass(frozen=True)
+class TrackAssessment:
+    """The verdict on a track (:meth:`Tracker.assess`), as the batch fit's
+    (:class:`~turbinefit.solver.fit.FitResult`) holds it.
+
+    Attributes:
+        theta_covariance: (7, 7) theta's covariance by the batch fit's rule on the
+            information of the flight (no start-up prior); None with the turbine fixed or
+            singular information.
+        signals, verdict, reasons: see :mod:`turbinefit.solver.verdict`.
+    """
+
+    theta_covariance: FloatArray | None
+    signals: Signals
+    verdict: Verdict
+    reasons: list[str]
+
+    @property
+    def theta_std(self) -> FloatArray | None:
+        """(7,) theta's standard deviations (metres, radians), or None."""
+        return self.signals.theta_std
 
 
 class KeyframeError(TurbinefitError, ValueError):
@@ -506,16 +550,73 @@ class Tracker:
             cov_t = None
             if lin.E is not None:
                 try:
-                    cov_t = np.asarray(np.linalg.inv(lin.E), dtype=np.float64)
+                    cov_t = inverse_spd(lin.E)
                 except np.linalg.LinAlgError:
-                    cov_t = None
-                if cov_t is not None and not np.all(np.isfinite(cov_t)):
                     cov_t = None
             return np.zeros((6, 6)), cov_t
         try:
             return arrow_covariance(lin.D, lin.B, lin.C, lin.E, index)
         except np.linalg.LinAlgError:
             return None, None
+
+    def theta_uncertainty(self) -> tuple[FloatArray | None, float | None]:
+        """theta's (7, 7) covariance and its distance from the optimum of the data's cost
+        [standard deviations], by the batch fit's rule
+        (:func:`~turbinefit.solver.verdict.theta_uncertainty`) on the information the
+        tracker holds from the flight: the window's configured cost linearised at the
+        current estimate with correspondences searched there, and the marginal prior of
+        the keyframes that left it; not the start-up prior on theta (a regulariser, not
+        evidence: while it acts, the distance includes how far it holds theta from what
+        the images say). (None, None) with the turbine fixed, before the first keyframe,
+        or with singular information (e.g. one keyframe that leaves a direction of theta
+        unfixed). One correspondence search and linearisation of the window: for the end
+        of a flight, not for every update."""
+        w = self._window
+        if w is None or self.config.fit.mode != "joint":
+            return None, None
+        prob = FitProblem(w.data, self._refine_cfg, fixed=self._fixed(), prior=self._marginal,
+                          evidence=w.evidence)
+        corr = initial_correspondences(prob, w.world_T_cam, self._theta)
+        return theta_uncertainty(prob.linearize(w.world_T_cam, self._theta, corr))
+
+    def theta_covariance(self) -> FloatArray | None:
+        """theta's covariance of :meth:`theta_uncertainty`: the verdict's."""
+        return self.theta_uncertainty()[0]
+
+    def arrival_evidence(self) -> ImageEvidence:
+        """How the heat-maps of the latest keyframe agree with its estimate on arrival and
+        the current theta (:func:`~turbinefit.solver.verdict.image_evidence`): the image
+        signals of the verdict. Call it right after each :meth:`update` (it is not part
+        of the update's work) and pass what it returns to :meth:`assess`."""
+        w = self._window
+        if w is None:
+            raise ValueError("no keyframe yet")
+        last = len(w) - 1
+        return image_evidence(w.data, w.world_T_cam[last:last + 1], self._theta,
+                              self.config.fit, keyframes=np.array([last]))
+
+    def assess(self, image: ImageEvidence, initial: SE3, measurements: SE3
+               ) -> TrackAssessment:
+        """The verdict on the track so far, by the batch fit's rules (the same signals,
+        thresholds and covariance function, :mod:`turbinefit.solver.verdict`).
+
+        Args:
+            image: every keyframe's :meth:`arrival_evidence`, in arrival order
+                (:meth:`~turbinefit.solver.verdict.ImageEvidence.concat`).
+            initial: (N,) the poses the keyframes came with.
+            measurements: (N,) the poses whose steps are the pairwise measurements (the
+                odometry poses if the keyframes came with them, else ``initial``).
+        """
+        if not self.estimates:
+            raise ValueError("no keyframe yet")
+        cov, step = self.theta_uncertainty()
+        joint = self.config.fit.mode == "joint"
+        signals = measure(image, initial, self.world_T_cam(), measurements,
+                          self._theta if joint else None, cov, self.config.fit,
+                          sum(e.iterations for e in self.estimates), (self.estimates[-1].cost,),
+                          step)
+        verdict, reasons = judge(signals)
+        return TrackAssessment(cov, signals, verdict, reasons)
 
     def _marginalize_oldest(self, poses: SE3, prob: FitProblem) -> None:
         """Fold the window's oldest keyframe into the prior and freeze its pose."""

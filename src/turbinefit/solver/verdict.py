@@ -21,7 +21,18 @@ on the result (pure computation: no files, no printing):
   (:data:`~turbinefit.turbine.model.THETA_LOWER` / ``THETA_UPPER``, which the solver keeps
   it in: ending on a bound means the data pushed it out), blade tips above the ground;
 * **conditioning**: theta's standard deviations from its covariance, the inverse of the
-  final normal equations' Schur complement on theta (:func:`theta_covariance`);
+  final normal equations' Schur complement on theta (:func:`theta_covariance`), taken
+  over the information of the flight alone: the tracker's start-up prior on theta is a
+  regulariser, not evidence, and is left out (a direction of theta no image fixes must
+  show, not be capped at the prior's sigma). A Schur complement that is not positive
+  definite leaves some direction of theta unfixed: an infinite standard deviation, so
+  ``failed``;
+* **convergence**: how far theta is from the optimum of the data's cost, in its standard
+  deviations: the length ``sqrt(dt^T S dt)`` of the undamped Gauss-Newton step ``dt``
+  left at the estimate, ``S`` theta's information (:func:`theta_uncertainty`). A
+  covariance describes the error of an estimate at that optimum only: the batch fit ends
+  there, the tracker's last update may not (five iterations per keyframe), nor an
+  estimate its start-up prior still holds away from what the images say;
 * **finite**: no NaN or infinity anywhere, and the solver took at least one step.
 
 Each threshold below was set from the signals of simulated flights
@@ -44,7 +55,7 @@ from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import project_points
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig
-from turbinefit.solver.linalg import arrow_covariance
+from turbinefit.solver.linalg import arrow_theta, inverse_spd
 from turbinefit.solver.problem import (
     Correspondences,
     FitProblem,
@@ -97,6 +108,11 @@ LENGTH_STD_M = (3.0, 10.0)
 #: (doubtful above, failed above) the standard deviation of an angle of theta [deg]
 #: (good fits: <= 0.3).
 ANGLE_STD_DEG = (3.0, 10.0)
+#: (doubtful above, failed above) theta's distance from the optimum of the data's cost,
+#: in its standard deviations (good fits: <= 0.8, good tracks <= 0.5; one-keyframe tracks
+#: from a turbine 5x further off than the simulator's default: 4.6-7.4 on three of eight
+#: flights, with errors of 5.2-8.5 sigma; python benchmarks/bench_verdict.py --track).
+THETA_STEP_SIGMAS = (3.0, 10.0)
 #: A length this close to a bound [m] is on it.
 BOUND_TOLERANCE_M = 1e-6
 
@@ -188,16 +204,33 @@ def image_evidence(data: ProblemData, world_T_cam: SE3, theta: FloatArray, confi
                          width)
 
 
-def theta_covariance(lin: Linearization) -> FloatArray | None:
-    """theta's (7, 7) covariance from undamped normal equations ``lin`` (with Jacobian):
-    the inverse of the Schur complement of the poses; None if singular or not finite."""
-    if lin.D is None or lin.B is None or lin.C is None or lin.E is None:
-        return None
+def theta_uncertainty(lin: Linearization) -> tuple[FloatArray | None, float | None]:
+    """theta's (7, 7) covariance from undamped normal equations ``lin`` (with Jacobian),
+    the inverse of the Schur complement ``S`` of the poses, and the length in standard
+    deviations of the Gauss-Newton step ``dt = -S^-1 r`` left at the estimate,
+    ``sqrt(dt^T S dt) = sqrt(r^T S^-1 r)`` (``r``: the gradient with the poses
+    eliminated); (None, None) if ``S`` is not positive definite (a direction of theta
+    without information) or not finite, or the turbine is fixed.
+
+    The one rule for the batch fit and the tracker: ``lin`` holds the information of the
+    data (image terms, pairwise edges, the gauge, and for the tracker the prior its
+    marginalised keyframes left), never a regulariser such as the tracker's start-up
+    prior on theta."""
+    if (lin.D is None or lin.B is None or lin.C is None or lin.E is None or lin.g_p is None
+            or lin.g_t is None):
+        return None, None
     try:
-        _, cov = arrow_covariance(lin.D, lin.B, lin.C, lin.E, 0)
+        S, r = arrow_theta(lin.D, lin.B, lin.C, lin.E, lin.g_p, lin.g_t)
+        cov = inverse_spd(S)
     except np.linalg.LinAlgError:
-        return None
-    return cov
+        return None, None
+    step = float(r @ cov @ r)
+    return cov, math.sqrt(max(step, 0.0)) if math.isfinite(step) else None
+
+
+def theta_covariance(lin: Linearization) -> FloatArray | None:
+    """theta's covariance of :func:`theta_uncertainty`."""
+    return theta_uncertainty(lin)[0]
 
 
 def pose_signals(measurements: SE3, initial: SE3, final: SE3, config: FitConfig
@@ -244,6 +277,7 @@ class Signals:
     theta_std: FloatArray | None
     iterations: int
     finite: bool
+    theta_step_sigmas: float | None = None
 
     @property
     def reprojection_share(self) -> float | None:
@@ -272,6 +306,7 @@ class Signals:
             "pose_shift_sigmas": _finite_or_none(self.pose_shift_sigmas),
             "pairwise_chi2": _finite_or_none(self.pairwise_chi2),
             "theta_std": self.theta_std_dict(),
+            "theta_step_sigmas": _finite_or_none(self.theta_step_sigmas),
             "iterations": self.iterations,
             "finite": self.finite,
         }
@@ -283,10 +318,12 @@ def _finite_or_none(v: float | None) -> float | None:
 
 def measure(image: ImageEvidence, initial: SE3, final: SE3, measurements: SE3,
             theta: FloatArray | None, theta_cov: FloatArray | None, config: FitConfig,
-            iterations: int, extra_values: tuple[float, ...] = ()) -> Signals:
+            iterations: int, extra_values: tuple[float, ...] = (),
+            theta_step_sigmas: float | None = None) -> Signals:
     """The signals of an estimate (``final`` poses and ``theta``, None with the turbine
     fixed) whose image agreement is ``image``; ``extra_values``: other numbers of the
-    result that must be finite (costs)."""
+    result that must be finite (costs); ``theta_cov`` and ``theta_step_sigmas`` from
+    :func:`theta_uncertainty`."""
     finite = bool(np.all(np.isfinite(final.wxyz_xyz))) and all(
         math.isfinite(v) for v in extra_values)
     if theta is not None:
@@ -309,7 +346,8 @@ def measure(image: ImageEvidence, initial: SE3, final: SE3, measurements: SE3,
     if theta is not None and finite:
         turbine = TurbineParams.from_vector(theta)
     return Signals(n, image.width_px, float(with_ev.mean()) if n else 0.0, inlier, reproj,
-                   shift_m, shift_sig, chi2, turbine, std, iterations, finite)
+                   shift_m, shift_sig, chi2, turbine, std, iterations, finite,
+                   theta_step_sigmas if std is not None else None)
 
 
 def _grade(value: float | None, limits: tuple[float, float], above: bool) -> int:
@@ -369,8 +407,12 @@ def judge(s: Signals) -> tuple[Verdict, list[str]]:
             unit = "deg" if angular else "m"
             add(_grade(sd, ANGLE_STD_DEG if angular else LENGTH_STD_M, above=True),
                 f"{name} standard deviation {sd:.2f} {unit}")
+        add(_grade(s.theta_step_sigmas, THETA_STEP_SIGMAS, above=True),
+            f"theta {s.theta_step_sigmas or 0.0:.1f} sigma from the optimum of the data's cost "
+            "(not converged, or held off it by a prior)")
     elif s.theta is not None and s.finite:
-        doubts.append("theta's covariance is singular")
+        fails.append("theta's covariance is singular: the data leave a direction of theta "
+                     "unfixed")
     if fails:
         return "failed", fails + doubts
     if doubts:
