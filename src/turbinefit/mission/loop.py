@@ -243,6 +243,7 @@ class Mission:
     tracker: Tracker
     init_note: str
     timings: dict[str, float]
+    replan_errors: list[str] = field(default_factory=list)
 
     @property
     def inspection(self) -> list[Keyframe]:
@@ -437,6 +438,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     plans = [plan]
     done: set[tuple[int, int, float]] = set()
     replans = failures = 0
+    replan_errors: list[str] = []
     queue = list(plan.waypoints[1:])
     total = len(plan.photos)
     while queue:
@@ -461,8 +463,9 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             surface = TurbineSurface(tracker.turbine)
             again = _replan(surface, cfg, options, done, plan, w,
                             nav.believed(kf.recorded).translation)
-        except PlanError:
+        except PlanError as e:
             failures += 1
+            replan_errors.append(str(e))
             again = None
         timings["plan_s"] += time.perf_counter() - t0
         if again is None:
@@ -476,7 +479,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     timings["total_s"] = time.perf_counter() - t_start
     return Mission(cfg, truth, typed_in, initial, defects, keyframes, np.array(path_true),
                    np.array(path_rec), np.array(path_est), plans, replans, failures,
-                   tracker, init_note, timings)
+                   tracker, init_note, timings, replan_errors)
 
 
 def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
