@@ -9,6 +9,8 @@ from typing import Any
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
+    from turbinefit.cli.common import latlonalt
+
     p: argparse.ArgumentParser = sub.add_parser(
         "dji", help="DJI photos (EXIF/XMP metadata) to a flight folder",
         description="Make a flight folder from DJI photos, reading only their metadata "
@@ -28,7 +30,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    "not recursive); all from one camera")
     p.add_argument("--out", dest="out_dir", metavar="FLIGHT_DIR", type=Path, required=True,
                    help="flight folder to create")
-    p.add_argument("--origin", type=_latlonalt, default=None, metavar="LAT,LON,ALT",
+    p.add_argument("--origin", type=latlonalt, default=None, metavar="LAT,LON,ALT",
                    help="origin of the world frame: WGS84 degrees and altitude [m] in the "
                    "photos' datum (default: the first photo at ground level)")
     turbine = p.add_mutually_exclusive_group()
@@ -52,14 +54,6 @@ def _latlon(text: str) -> tuple[float, ...]:
     from turbinefit.io.quantities import LATITUDE, LONGITUDE
 
     return option_tuple(LATITUDE, LONGITUDE, what="LAT,LON in degrees")(text)
-
-
-def _latlonalt(text: str) -> tuple[float, ...]:
-    from turbinefit.cli.common import option_tuple
-    from turbinefit.io.quantities import ALTITUDE, LATITUDE, LONGITUDE
-
-    return option_tuple(LATITUDE, LONGITUDE, ALTITUDE,
-                        what="LAT,LON,ALT (degrees, degrees, metres)")(text)
 
 
 def run(args: argparse.Namespace) -> int:

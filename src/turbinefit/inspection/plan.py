@@ -144,6 +144,8 @@ class Plan:
         gsd_mm: the resolution at the stand-off [mm/px].
         skipped: per (part, side) the stations no view could clear.
         stations: per (part, side) the stations planned (photos).
+        beyond_gimbal: per (part, side) the stations left out because every view of them
+            looks up more steeply than the gimbal can (part of ``skipped``).
         min_rotor_clearance: least distance of the path (waypoints and legs) from the
             blades and the spinner [m], from :func:`check_plan` (a lower bound).
         min_tower_clearance: the same from the tower and the nacelle [m].
@@ -154,6 +156,7 @@ class Plan:
     gsd_mm: float
     skipped: dict[tuple[int, int], int] = field(default_factory=dict)
     stations: dict[tuple[int, int], int] = field(default_factory=dict)
+    beyond_gimbal: dict[tuple[int, int], int] = field(default_factory=dict)
     min_rotor_clearance: float = math.inf
     min_tower_clearance: float = math.inf
     check_s: float = 0.0
@@ -314,7 +317,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         normals = np.cos(tw) * bl.normal - np.sin(tw) * bl.chord
         for side in range(4):
             normal0 = [bl.chord, bl.normal, -bl.chord, -bl.normal][side]
-            sw, blocked = [], 0
+            sw, blocked, steep = [], 0, 0
             for j, sp in enumerate(spans):
                 w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal0,
                             (float(A[j]), float(B[j]), chords[j], normals[j]))
@@ -322,9 +325,11 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                     sw.append(w)
                 else:
                     blocked += w == "clearance"
+                    steep += w == "gimbal"
             sweeps[(i, side)] = sw
             plan.stations[(i, side)] = len(sw)
             plan.skipped[(i, side)] = len(spans) - len(sw)
+            plan.beyond_gimbal[(i, side)] = steep
             if blocked > 0.5 * len(spans):
                 raise PlanError(
                     f"a stand-off of {d:g} m meets the rotor: only {len(sw)} of {len(spans)} "

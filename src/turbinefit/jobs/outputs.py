@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -46,18 +47,21 @@ class OutputKind:
         command: the command's name (for messages).
         entries: the file names it writes, or None to allow any name with ``suffixes``.
         suffixes: the file suffixes it writes (with ``entries=None``).
+        patterns: regular expressions of further names it writes (numbered files).
     """
 
     command: str
     entries: frozenset[str] | None = None
     suffixes: tuple[str, ...] = ()
+    patterns: tuple[str, ...] = ()
 
     def foreign_entry(self, folder: Path) -> str | None:
         """None if ``folder`` holds nothing but files this command writes (safe to
         replace), else why not."""
         for entry in folder.iterdir():
             ok = (entry.name in self.entries if self.entries is not None
-                  else entry.suffix in self.suffixes)
+                  else entry.suffix in self.suffixes) or any(
+                      re.fullmatch(p, entry.name) for p in self.patterns)
             if not ok or not entry.is_file():
                 return f"{entry.name!r} is not an output of turbinefit {self.command}"
         return None

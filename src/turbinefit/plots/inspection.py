@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from turbinefit.inspection.coverage import Coverage
     from turbinefit.inspection.plan import Plan
     from turbinefit.inspection.surface import TurbineSurface
+    from turbinefit.io.georef import Georef
 
 #: Colour of span never seen.
 GAP_COLOUR = "#d9d9d9"
@@ -72,7 +73,8 @@ def plot_coverage(path: str | os.PathLike[str], coverage: Coverage, max_gsd_mm: 
 PART_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#7f7f7f")
 
 
-def plot_path(path: str | os.PathLike[str], plan: Plan, surface: TurbineSurface) -> Path:
+def plot_path(path: str | os.PathLike[str], plan: Plan, surface: TurbineSurface,
+              georef: Georef | None = None) -> Path:
     """The planned path round the turbine in 3-D (photos coloured by the part they show,
     transit legs dashed) and from above."""
     from turbinefit.inspection.surface import PARTS
