@@ -418,6 +418,8 @@ class BoxLocation:
         distance_m: median camera distance of those samples [m].
         on_part: fraction of the box's samples on that part (the rest: other parts or
             background).
+        world_p: the surface point [m, world] of that part's sample at the median span (at
+            the median distance on the nacelle and hub), or None.
     """
 
     part: str | None
@@ -427,6 +429,7 @@ class BoxLocation:
     span_to_m: float | None
     distance_m: float | None
     on_part: float
+    world_p: tuple[float, float, float] | None = None
 
 
 #: Sample pixels a side of a box in :func:`locate_box` (at most; one per pixel).
@@ -446,7 +449,7 @@ def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
     us = x0 + (np.arange(nu) + 0.5) * (x1 - x0) / nu - 0.5  # pixel centres: edges - 0.5
     vs = y0 + (np.arange(nv) + 0.5) * (y1 - y0) / nv - 0.5
     uv = np.stack(np.meshgrid(us, vs), -1).reshape(-1, 2)
-    hits, _ = lookup_pixels(surface, camera, world_T_cam, uv)
+    hits, points = lookup_pixels(surface, camera, world_T_cam, uv)
     seen = hits.part[hits.part >= 0]
     if seen.size == 0:
         return BoxLocation(None, None, None, None, None, None, 0.0)
@@ -458,8 +461,11 @@ def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
         side = names[int(np.bincount(hits.side[on]).argmax())]
     spans = hits.span[on]
     has_span = k <= TOWER
+    key = spans if has_span else hits.distance[on]
+    p = points[on][int(np.argmin(np.abs(key - np.median(key))))]
     return BoxLocation(PARTS[k], side,
                        float(np.median(spans)) if has_span else None,
                        float(spans.min()) if has_span else None,
                        float(spans.max()) if has_span else None,
-                       float(np.median(hits.distance[on])), float(on.mean()))
+                       float(np.median(hits.distance[on])), float(on.mean()),
+                       (float(p[0]), float(p[1]), float(p[2])))

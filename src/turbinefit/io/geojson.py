@@ -29,10 +29,13 @@ from typing import Any
 
 from turbinefit.io.atomic import write_text_atomic
 
-#: EPSG:4326 (WGS 84, geographic 2-D, latitude-longitude) as the ESRI-flavoured WKT that
-#: ``.prj`` files hold (what GDAL writes for it: axis order is longitude, latitude).
-WGS84_PRJ = ('GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,'
-             '298.257223563]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]')
+#: EPSG:4326 (WGS 84, geographic 2-D) as GDAL writes it in WKT 1, with its EPSG
+#: authority codes (so GDAL and QGIS name it EPSG:4326 rather than a custom CRS).
+WGS84_PRJ = ('GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,'
+             'AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,'
+             'AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,'
+             'AUTHORITY["EPSG","9122"]],AXIS["Latitude",NORTH],AXIS["Longitude",EAST],'
+             'AUTHORITY["EPSG","4326"]]')
 
 
 def _value(text: str) -> Any:

@@ -60,8 +60,8 @@ def mission_points(plan: Plan, georef: Georef) -> list[MissionPoint]:
         name = f"{PARTS[w.part]} {side_names(w.part)[w.side]} {w.span:.2f} m" if w.photo else ""
         out.append(MissionPoint(i, float(lat[i]), float(lon[i]), float(alt[i]),
                                 float(alt[i] - georef.altitude),
-                                (90.0 - math.degrees(w.yaw)) % 360.0,
-                                math.degrees(w.pitch), w.photo, name))
+                                round((90.0 - math.degrees(w.yaw)) % 360.0, 6) % 360.0,
+                                round(math.degrees(w.pitch), 6) + 0.0, w.photo, name))
     return out
 
 
@@ -99,15 +99,26 @@ def _settings(name: str, georef: Georef, platform: Platform, speed: float,
 def split_for(fmt: str, points: list[MissionPoint], platform: Platform,
               settings: MissionSettings) -> list[Mission]:
     """``points`` split into the missions ``platform`` takes in format ``fmt``."""
-    if fmt in ("qgc", "mavlink"):
-        return split_missions(points, platform.max_waypoints,
-                              lambda p: mavlink_items(p, settings.condition_yaw),
-                              platform.max_items, MAVLINK_OVERHEAD)
-    return split_missions(points, platform.max_waypoints)
+    try:
+        if fmt in ("qgc", "mavlink"):
+            return split_missions(points, platform.max_waypoints,
+                                  lambda p: mavlink_items(p, settings.condition_yaw),
+                                  platform.max_items, MAVLINK_OVERHEAD)
+        return split_missions(points, platform.max_waypoints)
+    except ValueError as exc:
+        raise InputError(f"platform {platform.key} takes too few waypoints per mission for "
+                         f"{fmt}: {exc}", field="--platform") from None
 
 
-def check_flyable(points: Sequence[MissionPoint], formats: Sequence[str]) -> None:
-    """Refuse what a format cannot hold: Litchi's heights above the take-off point.
+#: The least distance between consecutive waypoints DJI's Mobile SDK waypoint missions
+#: (Litchi's) take [m].
+DJI_MIN_LEG_M = 0.5
+
+
+def check_flyable(points: Sequence[MissionPoint], formats: Sequence[str],
+                  world_p: np.ndarray) -> None:
+    """Refuse what a format cannot hold: Litchi's heights above the take-off point and
+    waypoints closer than :data:`DJI_MIN_LEG_M` (``world_p``: their positions [m]).
 
     Raises:
         InputError: field ``--format``, naming the waypoint.
@@ -118,6 +129,13 @@ def check_flyable(points: Sequence[MissionPoint], formats: Sequence[str]) -> Non
             if not lo <= p.height <= hi:
                 raise InputError(f"waypoint {p.index} is {p.height:.1f} m above the take-off "
                                  f"point, outside Litchi's {lo:g} to {hi:g} m", field="--format")
+        legs = np.linalg.norm(np.diff(world_p, axis=0), axis=1)
+        short = np.flatnonzero(legs < DJI_MIN_LEG_M)
+        if short.size:
+            i = int(short[0])
+            raise InputError(f"waypoints {i} and {i + 1} are {legs[i]:.2f} m apart, closer "
+                             f"than the {DJI_MIN_LEG_M:g} m Litchi's missions take",
+                             field="--format")
 
 
 def write_mission_files(out_dir: Path, points: list[MissionPoint], formats: Sequence[str],

@@ -138,9 +138,11 @@ def summary_json(summary: Summary | Mapping[str, Any]) -> str:
 
 FIT_OUTPUTS = OutputKind("fit", frozenset({
     "keyframes.txt", "turbine.yaml", "turbine.glb", "config.yaml", "summary.json", "scene.png",
-    "reprojections.png", "errors.png", "cost.png", "keyframes_wgs84.csv"}))
+    "reprojections.png", "errors.png", "cost.png", "keyframes_wgs84.csv",
+    "keyframes_wgs84.csvt", "keyframes_wgs84.prj", "keyframes_wgs84.geojson"}))
 TRACK_OUTPUTS = OutputKind("track", frozenset({
     "causal.txt", "keyframes.txt", "turbine.yaml", "turbine.glb", "latency.csv", "latency.png",
-    "config.yaml", "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv"}))
+    "config.yaml", "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv",
+    "keyframes_wgs84.csvt", "keyframes_wgs84.prj", "keyframes_wgs84.geojson"}))
 #: ``detect`` writes ``<stem>.npy`` heat-maps and a ``<stem>.png`` overlay per photo.
 DETECT_OUTPUTS = OutputKind("detect", None, (".npy", ".png"))

@@ -282,7 +282,7 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     except PlanError as exc:
         raise InputError(str(exc), field=OPTION_NAMES.get(exc.option, exc.option)) from None
     points = mission_points(plan, georef) if georef is not None else []
-    check_flyable(points, mission_formats)
+    check_flyable(points, mission_formats, np.array([w.position for w in plan.waypoints]))
     rth = math.ceil(float(surface.hub[2]) + surface.b + standoff + 5.0)
     timings = {"plan": time.perf_counter() - t0, "check": plan.check_s}
     stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
