@@ -401,7 +401,8 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
             from turbinefit.plots.inspection import plot_coverage
 
             try:
-                plot_coverage(tmp / "coverage.png", cov, max_gsd_mm)
+                plot_coverage(tmp / "coverage.png", cov, max_gsd_mm,
+                              math.sqrt(cam.fx * cam.fy))
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
