@@ -71,6 +71,9 @@ SECTION_SLOPE = 0.15
 #: error at the blades (1.1 m: the fitted blades' points to 0.5 m, and the flat section
 #: against a real blade's, twisted 14 deg at the root: its edge 0.01 blade lengths off).
 MIN_STANDOFF = 3.0
+#: The least distance between a transit point and its neighbours [m]: DJI's waypoint
+#: missions (Litchi's) take waypoints at least 0.5 m apart.
+MIN_LEG = 0.5
 #: The least tower clearance [m] (``plan --tower-clearance``, and the default's floor):
 #: the drone's radius and hovering error; the tower and the nacelle are modelled better
 #: than the blades.
@@ -463,6 +466,16 @@ def _stations(lo: float, hi: float, foot: float, step: float) -> FloatArray:
     return np.linspace(a, b, n)
 
 
+def _drop_close(p: FloatArray, least: float = MIN_LEG) -> FloatArray:
+    """The polyline ``p`` (n, 3) without the inner points closer than ``least`` to the
+    point kept before them or to the last point (the ends are kept)."""
+    kept = [p[0]]
+    for q in p[1:-1]:
+        if np.linalg.norm(q - kept[-1]) >= least and np.linalg.norm(q - p[-1]) >= least:
+            kept.append(q)
+    return np.stack([*kept, p[-1]])
+
+
 def _densify(p: FloatArray, step: float = 0.5) -> FloatArray:
     """Points along the polyline ``p`` (n, 3) at most ``step`` apart."""
     if len(p) < 2:
@@ -538,6 +551,7 @@ class _Router:
         for r in routes:
             pts = np.stack([pa, *r, pb])
             pts[:, 2] = np.maximum(pts[:, 2], self.min_alt)
+            pts = _drop_close(pts)
             if self._clear(pts):
                 best = list(pts[1:-1])
                 break
