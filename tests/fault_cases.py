@@ -537,6 +537,27 @@ def _cases() -> list[Case]:
             None, r"--max-gimbal-up", words, usage=True)
     add("plan-gsd-unreachable", cmd(*plan, "--standoff", "10", "--gsd", "0.01"), None,
         r"--gsd", r"mm/px at a stand-off of 10 m")
+    # issue 47: mission files, platforms (the flight folder has no georef.yaml)
+    origin = ("--standoff", "10", "--origin", "51.45,-2.51,40")
+    add("plan-unknown-platform", cmd(*plan, *origin, "--platform", "m31t"), None,
+        r"--platform: unknown platform 'm31t'; known: generic")
+    add("plan-unknown-format", cmd(*plan, *origin, "--format", "kml,dji"), None,
+        r"--format: unknown mission format 'dji'", usage=True)
+    add("plan-format-not-flown", cmd(*plan, *origin, "--format", "dji-wpml"), None,
+        r"--format: platform generic does not fly dji-wpml missions")
+    add("plan-format-platform", cmd(*plan, *origin, "--format", "litchi", "--platform", "m30t"),
+        None, r"--format: platform m30t does not fly litchi missions")
+    add("plan-mission-without-georef", cmd(*plan, "--standoff", "10", "--format", "qgc"), None,
+        r"--format: qgc need a georeferenced fit", r"--origin")
+    add("plan-gimbal-beyond-platform", cmd(*plan, *origin, "--max-gimbal-up", "45"), None,
+        r"--max-gimbal-up: 45 deg is beyond the gimbal of platform generic")
+    add("plan-speed-beyond-platform", cmd(*plan, *origin, "--platform", "px4", "--speed", "14"),
+        None, r"--speed: 14 m/s is faster than platform px4")
+    add("plan-origin-nan", cmd(*plan, "--standoff", "10", "--origin", "nan,0,0"), None,
+        r"--origin", r"latitude must be a number", usage=True)
+    add("plan-origin-on-georef", cmd(*plan, *origin), write("georef.yaml",
+        "latitude: 51.4\nlongitude: -2.5\naltitude: 40\nframe: enu\n"), r"--origin: the "
+        r"flight is georeferenced")
     return c
 
 

@@ -166,6 +166,30 @@ def test_fit_gives_wgs84_in_the_photos_convention(round_trip: Path) -> None:
                                [turbine.base_x, turbine.base_y], atol=1e-3)
 
 
+def test_fit_s_wgs84_outputs_open_in_gis_tools_as_wgs84_points(round_trip: Path) -> None:
+    """keyframes_wgs84.csv opens in GDAL (QGIS's reader; pyogrio here) as EPSG:4326 points
+    without open options, from its .csvt and .prj; its GeoJSON twin holds the same points;
+    turbine.glb records the origin."""
+    import json
+    import struct
+
+    pyogrio = pytest.importorskip("pyogrio")
+    fit = round_trip / "fit_imported"
+    rows = np.loadtxt(fit / "keyframes_wgs84.csv", delimiter=",", skiprows=1)
+    for name in ("keyframes_wgs84.csv", "keyframes_wgs84.geojson"):
+        info = pyogrio.read_info(fit / name)
+        assert info["crs"] in ("EPSG:4326", "EPSG:4979") and info["features"] == len(rows)
+        assert info["geometry_type"].startswith("Point")
+        _, _, geometry, _ = pyogrio.raw.read(fit / name)
+        # WKB points: byte order, type, then x = longitude, y = latitude
+        xy = np.array([struct.unpack("<dd", g[5:21]) for g in geometry])
+        np.testing.assert_allclose(xy, rows[:, [2, 1]], atol=1e-9)
+    data = (fit / "turbine.glb").read_bytes()
+    doc = json.loads(data[20:20 + struct.unpack("<I", data[12:16])[0]])
+    block = doc["asset"]["extras"]["turbinefit_georeference"]
+    assert (block["latitude"], block["longitude"], block["altitude"]) == pytest.approx(DJI_ORIGIN)
+
+
 def test_track_of_the_import_gives_wgs84(round_trip: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     rc, _, err = run(capsys, "track", str(round_trip / "imported"), "--out",

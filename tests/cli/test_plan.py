@@ -40,7 +40,8 @@ def test_plan_writes_waypoints_and_coverage_reads_them(
         capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "plan"
     rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--gsd", "2",
-                          "--camera", str(camera_yaml), "--out", str(out))
+                          "--camera", str(camera_yaml), "--platform", "unlimited",
+                          "--out", str(out))
     assert rc == 0, err
     assert "photos" in stdout and "clearance from the rotor" in stdout
     assert sorted(p.name for p in out.iterdir()) == [
@@ -217,3 +218,151 @@ def test_recorded_paths_work_from_any_directory(
     assert main(["coverage", "../work/runs/fit", "--out", "cov", "--no-plots", "--quiet"]) == 0
     cov = json.loads((tmp_path / "elsewhere" / "cov" / "summary.json").read_text())
     assert (tmp_path / "elsewhere" / "cov" / cov["flight"] / "camera.yaml").is_file()
+
+
+# ---- issue 47: mission files, platforms, GIS twins -------------------------------------------
+
+ORIGIN = "51.45,-2.51,40"
+
+
+def _read_missions(out: Path, pattern: str, reader) -> list:
+    """The waypoints of a plan's numbered missions, each after the first without the point
+    it resumes from."""
+    points: list = []
+    for k, path in enumerate(sorted(out.glob(pattern))):
+        read = reader(path)
+        points += read if k == 0 else read[1:]
+    return points
+
+
+def test_plan_writes_mission_files_that_fly_the_plan(fit_dir: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A simulated fit placed with --origin: each format, read back by its own reader, flies
+    waypoints.csv's path to 1 cm with its headings and gimbal pitches to 0.1 deg; missions
+    split at the platform's 99 waypoints; the gimbal kept within the platform's +20 deg."""
+    from turbinefit.io import mission_readers as R
+
+    out = tmp_path / "plan"
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--origin", ORIGIN,
+                          "--format", "litchi,qgc,mavlink,kml", "--out", str(out))
+    assert rc == 0, err
+    assert "platform generic: gimbal up to 20 deg" in stdout and "litchi: litchi_01.csv" in stdout
+    rows = list(csv.DictReader((out / "waypoints.csv").open()))
+    assert len(rows) > 99 and max(float(r["gimbal_pitch_deg"]) for r in rows) <= 20.0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["platform"] == "generic" and summary["georeference"] == "--origin"
+    files = summary["missions"]["formats"]
+    assert files["litchi"] == ["litchi_01.csv", "litchi_02.csv"]
+    georef = Georef(51.45, -2.51, 40.0)
+    xyz = np.array([[float(r[k]) for k in "xyz"] for r in rows])
+    heading = (90.0 - np.array([float(r["yaw_deg"]) for r in rows])) % 360.0
+    photo = np.array([r["photo"] == "1" for r in rows])
+    pitch = np.array([float(r["gimbal_pitch_deg"]) for r in rows])
+    for pattern, reader in (("litchi_*.csv", R.read_litchi_csv), ("mission_*.plan", R.read_qgc_plan),
+                            ("mission_*.waypoints", R.read_mavlink_wpl)):
+        pts = _read_missions(out, pattern, reader)
+        assert len(pts) == len(rows), pattern
+        enu = georef.enu([p.latitude for p in pts], [p.longitude for p in pts],
+                         [40.0 + p.height for p in pts])
+        assert np.abs(enu - xyz).max() < 0.01, pattern  # waypoints.csv's millimetres aside
+        dh = (np.array([p.heading for p in pts]) - heading + 180.0) % 360.0 - 180.0
+        assert np.abs(dh).max() < 0.1, pattern
+        assert [p.photo for p in pts] == photo.tolist(), pattern
+        got = np.array([p.gimbal_pitch for p in pts])[photo]
+        assert np.abs(got - pitch[photo]).max() < 0.1, pattern
+    for path in out.glob("litchi_*.csv"):
+        assert len(R.read_litchi_csv(path)) <= 99
+
+
+def test_plan_writes_dji_wpml_for_a_dji_enterprise_platform(fit_dir: Path, tmp_path: Path,
+                                                            camera_yaml: Path) -> None:
+    from turbinefit.io.mission_readers import read_wpml_kmz
+
+    out = tmp_path / "plan"
+    assert main(["plan", str(fit_dir), "--standoff", "10", "--origin", ORIGIN, "--platform",
+                 "m30t", "--format", "dji-wpml", "--out", str(out), "--no-plots",
+                 "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "dji.kmz", "keyframes.txt", "summary.json", "turbine.yaml", "waypoints.csv",
+        "waypoints.geojson", "waypoints_wgs84.csv", "waypoints_wgs84.geojson"]
+    summary = json.loads((out / "summary.json").read_text())
+    # the M30T's wide camera (4.5 mm, 6.4 mm sensor, 4000 px): f = 2812.5 px
+    assert summary["camera"]["fx"] == pytest.approx(2812.5) and summary["max_gimbal_up_deg"] == 30
+    pts = read_wpml_kmz(out / "dji.kmz")
+    rows = list(csv.DictReader((out / "waypoints.csv").open()))
+    assert len(pts) == len(rows) == summary["waypoints"]
+    assert sum(p.photo for p in pts) == summary["photos"]
+    assert max(p.gimbal_pitch for p in pts) <= 30.0
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--platform", "m31t"], r"--platform: unknown platform 'm31t'; known: generic, m300-h20t"),
+    (["--format", "dji-wpml"], r"--format: platform generic does not fly dji-wpml missions .*"
+     r"dji-wpml: --platform m300-h20t, m350-h20t, m30t, m3e"),
+    (["--format", "litchi", "--platform", "m3e"], r"--format: platform m3e does not fly litchi"),
+    (["--max-gimbal-up", "30"], r"--max-gimbal-up: 30 deg is beyond the gimbal of platform "
+     r"generic .*up to 20 deg"),
+    (["--platform", "px4", "--speed", "13"], r"--speed: 13 m/s is faster than platform px4"),
+])
+def test_plan_refuses_what_the_platform_cannot_fly(argv: list[str], words: str, fit_dir: Path,
+                                                   tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plan"
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--origin", ORIGIN,
+                          *argv, "--out", str(out))
+    assert_one_line_error(rc, stdout, err, words)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mission_files_need_a_georeference(fit_dir: Path, sim_flight_dir: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plan"
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--format",
+                          "litchi,kml", "--out", str(out))
+    assert_one_line_error(rc, stdout, err, r"--format: litchi, kml need a georeferenced fit: "
+                          r"a flight with georef\.yaml .* or --origin LAT,LON,ALT")
+    flight = Path(shutil.copytree(sim_flight_dir, tmp_path / "flight"))
+    (flight / "georef.yaml").write_text(format_georef_yaml(Georef(51.45, -2.51, 40.0)))
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--flight", str(flight), "--standoff",
+                          "10", "--origin", ORIGIN, "--out", str(out))
+    assert_one_line_error(rc, stdout, err, r"--origin: the flight is georeferenced")
+    assert not out.exists()
+    # --format unknown: a usage error
+    with pytest.raises(SystemExit) as info:
+        main(["plan", str(fit_dir), "--standoff", "10", "--format", "kmz", "--out", str(out)])
+    assert info.value.code == 2
+    assert "argument --format: unknown mission format 'kmz'" in capsys.readouterr().err
+
+
+def test_plan_says_which_sides_the_gimbal_cannot_see(fit_dir: Path, camera_yaml: Path,
+                                                     tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """The default gimbal (+20 deg) cannot look at the lower edge of a blade near horizontal:
+    the plan says so rather than leaving it to the coverage."""
+    rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--camera",
+                          str(camera_yaml), "--out", str(tmp_path / "plan"), "--no-plots")
+    assert rc == 0, err
+    summary = json.loads((tmp_path / "plan" / "summary.json").read_text())
+    unseen = [k for k, n in summary["beyond_gimbal"].items() if summary["stations"][k] == 0]
+    assert unseen and all(k.split("/")[1] in ("leading_edge", "trailing_edge") for k in unseen)
+    assert f"not photographed at all, every view beyond the gimbal's 20 deg up: " \
+           f"{', '.join(unseen)}" in stdout
+
+
+def test_the_gis_twins_open_in_gdal_as_wgs84_points(fit_dir: Path, tmp_path: Path) -> None:
+    """waypoints.csv gains latitude, longitude, altitude; its GeoJSON twin, read by GDAL
+    (pyogrio), is WGS84 points at the same places."""
+    pyogrio = pytest.importorskip("pyogrio")
+    out = tmp_path / "plan"
+    assert main(["plan", str(fit_dir), "--standoff", "10", "--origin", ORIGIN, "--out",
+                 str(out), "--no-plots", "--quiet"]) == 0
+    rows = list(csv.DictReader((out / "waypoints.csv").open()))
+    assert list(rows[0])[-3:] == ["latitude", "longitude", "altitude"]
+    for stem in ("waypoints", "waypoints_wgs84"):
+        info = pyogrio.read_info(out / f"{stem}.geojson")
+        # WGS84 (GDAL names a GeoJSON with heights EPSG:4979, WGS84 in three dimensions)
+        assert info["crs"] in ("EPSG:4326", "EPSG:4979") and info["geometry_type"] == "Point Z"
+        assert info["features"] == len(rows)
+        meta, _, _, fields = pyogrio.raw.read(out / f"{stem}.geojson")
+        lat = fields[list(meta["fields"]).index("latitude")]
+        assert np.allclose(lat, [float(r["latitude"]) for r in rows], atol=1e-9)

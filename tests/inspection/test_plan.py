@@ -15,6 +15,7 @@ from turbinefit.geometry.se3 import world_T_cam_from_angles
 from turbinefit.inspection.clearance import ROTOR, STRUCTURE, solid_samples
 from turbinefit.inspection.coverage import flight_coverage
 from turbinefit.inspection.plan import (
+    MIN_LEG,
     MIN_STANDOFF,
     PlanError,
     PlanOptions,
@@ -138,6 +139,11 @@ def test_sane_standoffs_always_give_a_checked_path(seed: int) -> None:
         assert p.min_rotor_clearance >= d
         assert p.min_tower_clearance >= tower_clearance(PlanOptions(d))
         assert max(math.degrees(w.pitch) for w in p.waypoints) <= up + 1e-9
+        # no transit point within MIN_LEG of its neighbours (DJI's waypoint missions)
+        pos = np.array([w.position for w in p.waypoints])
+        legs = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+        transit = np.array([not w.photo for w in p.waypoints])
+        assert np.all(legs[transit[:-1] | transit[1:]] >= MIN_LEG)
         if up == 90.0:  # (a gimbal limited cannot see a horizontal blade's lower edge)
             assert all(p.stations[(part, k)] > 0 for part in range(3) for k in range(4))
 

@@ -66,3 +66,30 @@ def test_write_into_a_directory_is_refused(tmp_path: Path) -> None:
     (tmp_path / "turbine.glb").mkdir()
     with raises_input_error(tmp_path / "turbine.glb"):
         write_turbine_glb(tmp_path / "turbine.glb", THETA, TurbineGeometry())
+
+
+def _gltf_json(data: bytes) -> dict:
+    n = struct.unpack("<I", data[12:16])[0]
+    return json.loads(data[20:20 + n])
+
+
+def test_glb_records_its_georeference() -> None:
+    """asset.extras.turbinefit_georeference: a point of the model taken to Earth-centred
+    coordinates by its ecef_from_enu (after 3D Tiles' y-up to z-up turn) is where pymap3d
+    puts the same east-north-up point; without a georeference, no block."""
+    import pymap3d
+
+    from turbinefit.io.georef import Georef
+
+    georef = Georef(-33.87, 151.21, 35.0)
+    turbine = TurbineParams(40.0, -25.0, 87.6, 2.4, 5.0, 0.9, 63.0)
+    doc = _gltf_json(turbine_glb(turbine, TurbineGeometry(), georef))
+    block = doc["asset"]["extras"]["turbinefit_georeference"]
+    assert (block["latitude"], block["longitude"], block["altitude"]) == (-33.87, 151.21, 35.0)
+    ecef_from_enu = np.array(block["ecef_from_enu"]).reshape(4, 4).T
+    # the tower base node's origin in glTF: (x, y, z)_glTF = (east, up, -north)
+    gltf = np.array(doc["nodes"][0]["matrix"]).reshape(4, 4).T[:, 3]
+    enu = np.array([gltf[0], -gltf[2], gltf[1], 1.0])  # 3D Tiles: y up to z up
+    want = pymap3d.enu2ecef(40.0, -25.0, 0.0, -33.87, 151.21, 35.0)
+    np.testing.assert_allclose((ecef_from_enu @ enu)[:3], want, atol=1e-6)
+    assert _gltf_json(turbine_glb(turbine, TurbineGeometry()))["asset"].get("extras") in (None, {})

@@ -91,6 +91,15 @@ def option_tuple(*quantities: Quantity, what: str) -> Callable[[str], tuple[floa
     return parse
 
 
+def latlonalt(text: str) -> tuple[float, ...]:
+    """The argparse type of ``LAT,LON,ALT`` (WGS84 degrees, altitude in metres), loading
+    the quantities only when the option is given."""
+    from turbinefit.io.quantities import ALTITUDE, LATITUDE, LONGITUDE
+
+    return option_tuple(LATITUDE, LONGITUDE, ALTITUDE,
+                        what="LAT,LON,ALT (degrees, degrees, metres)")(text)
+
+
 def whole_number(text: str, minimum: int, why: str) -> int:
     v = _integer(text)
     if v < minimum:

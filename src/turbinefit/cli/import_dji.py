@@ -9,7 +9,7 @@ from typing import Any
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
-    from turbinefit.cli.common import option
+    from turbinefit.cli.common import latlonalt, option
     from turbinefit.jobs.import_dji import DEFAULT_MAX_GAP_S, MAX_GAP
 
     p: argparse.ArgumentParser = sub.add_parser(
@@ -41,7 +41,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--max-gap", type=option(MAX_GAP), default=DEFAULT_MAX_GAP_S,
                    metavar="SECONDS", help="longest pause between two photos of one flight "
                    f"(default {DEFAULT_MAX_GAP_S:g} s)")
-    p.add_argument("--origin", type=_latlonalt, default=None, metavar="LAT,LON,ALT",
+    p.add_argument("--origin", type=latlonalt, default=None, metavar="LAT,LON,ALT",
                    help="origin of the world frame: WGS84 degrees and altitude [m] in the "
                    "photos' datum (default: each flight's first photo at ground level)")
     turbine = p.add_mutually_exclusive_group()
@@ -65,14 +65,6 @@ def _latlon(text: str) -> tuple[float, ...]:
     from turbinefit.io.quantities import LATITUDE, LONGITUDE
 
     return option_tuple(LATITUDE, LONGITUDE, what="LAT,LON in degrees")(text)
-
-
-def _latlonalt(text: str) -> tuple[float, ...]:
-    from turbinefit.cli.common import option_tuple
-    from turbinefit.io.quantities import ALTITUDE, LATITUDE, LONGITUDE
-
-    return option_tuple(LATITUDE, LONGITUDE, ALTITUDE,
-                        what="LAT,LON,ALT (degrees, degrees, metres)")(text)
 
 
 def run(args: argparse.Namespace) -> int:

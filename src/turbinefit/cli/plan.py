@@ -17,12 +17,28 @@ them keeps --standoff from the blades and the spinner and --tower-clearance from
 the tower and the nacelle, else nothing is written (exit 2). Writes waypoints.csv,
 keyframes.txt and turbine.yaml (so `turbinefit coverage OUT_DIR --camera ...`
 predicts what the flight will show), summary.json, path.png and, for a
-georeferenced flight, waypoints_wgs84.csv and waypoints.kml. Details:
-docs/inspection.md."""
+georeferenced flight, waypoints_wgs84.csv, waypoints.kml, GeoJSON twins of the
+waypoint CSVs and the mission files of --format (DJI WPML, Litchi, QGroundControl,
+MAVLink), split into missions --platform takes. The plan keeps the gimbal within
+--platform's range (default generic: -90 to +20 deg, what every common DJI gimbal
+does). Details: docs/inspection.md."""
+
+
+#: The mission formats --format takes (:data:`turbinefit.io.platforms.MISSION_FORMATS`).
+FORMATS = ("dji-wpml", "litchi", "qgc", "mavlink", "kml")
+
+
+def _formats(text: str) -> tuple[str, ...]:
+    names = tuple(f.strip().lower() for f in text.split(","))
+    for f in names:
+        if f not in FORMATS:
+            raise argparse.ArgumentTypeError(
+                f"unknown mission format {f!r}; known: {', '.join(FORMATS)}")
+    return names
 
 
 def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
-    from turbinefit.cli.common import DefaultsFormatter, job_option
+    from turbinefit.cli.common import DefaultsFormatter, job_option, latlonalt
 
     p: argparse.ArgumentParser = sub.add_parser(
         "plan", help=help, description=DESCRIPTION,
@@ -44,8 +60,23 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    "summary.json names")
     p.add_argument("--overlap", type=job_option("plan", "OVERLAP"), default=0.3, metavar="F",
                    help="fraction of the footprint neighbouring photos share")
-    p.add_argument("--max-gimbal-up", type=job_option("plan", "GIMBAL_UP"), default=90.0, metavar="DEG",
-                   help="the gimbal's largest upward pitch [deg], 0-90")
+    p.add_argument("--max-gimbal-up", type=job_option("plan", "GIMBAL_UP"), default=None,
+                   metavar="DEG", help="the gimbal's largest upward pitch [deg], 0-90 and at "
+                   "most the platform's (default: the platform's)")
+    p.add_argument("--platform", default=None, metavar="NAME",
+                   help="the drone, gimbal and app (src/turbinefit/data/drone_platforms.yaml: "
+                   "generic, m300-h20t, m350-h20t, m30t, m3e, mavic2-pro, phantom4-pro, px4, "
+                   "ardupilot): its gimbal's range, waypoints per mission, top speed and "
+                   "camera (default: generic)")
+    p.add_argument("--format", type=_formats, default=None, metavar="LIST", dest="formats",
+                   help="mission files to write, comma-separated: dji-wpml, litchi, qgc, "
+                   "mavlink, kml (default: kml when georeferenced); they need a "
+                   "georeferenced fit or --origin")
+    p.add_argument("--origin", type=latlonalt, default=None, metavar="LAT,LON,ALT",
+                   help="place a flight without georef.yaml (a simulated one): WGS84 "
+                   "position and altitude of its world frame's origin, the take-off point")
+    p.add_argument("--speed", type=job_option("plan", "SPEED"), default=3.0, metavar="M_S",
+                   help="the missions' cruise speed [m/s], at most the platform's")
     p.add_argument("--tower-clearance", type=job_option("plan", "TOWER_CLEARANCE"), default=None,
                    metavar="M",
                    help="least distance from the tower and the nacelle [m], at least 2 and at "
@@ -68,16 +99,28 @@ def run(args: argparse.Namespace) -> int:
     report = plan_folder(args.fit_dir, args.out, standoff=args.standoff, max_gsd_mm=args.gsd,
                          camera=camera, flight_dir=args.flight, overlap=args.overlap,
                          max_gimbal_up_deg=args.max_gimbal_up,
-                         tower_clearance=args.tower_clearance, plots=not args.no_plots,
-                         overwrite=args.overwrite)
+                         tower_clearance=args.tower_clearance, platform=args.platform,
+                         formats=args.formats, origin=args.origin, speed=args.speed,
+                         plots=not args.no_plots, overwrite=args.overwrite)
     if args.quiet:
         return 0
     s = report.summary
     print(f"planned {s['photos']} photos, {s['waypoints']} waypoints, path {s['length_m']:.0f} m "
           f"at {s['standoff_m']:g} m ({s['gsd_mm_px']:.2f} mm/px); clearance from the rotor "
           f"{s['min_rotor_clearance_m']:.2f} m, from the tower {s['min_tower_clearance_m']:.2f} m")
+    print(f"platform {s['platform']}: gimbal up to {s['max_gimbal_up_deg']:g} deg")
     if s["skipped"]:
         print("stations without a clear view: "
               + ", ".join(f"{k} {n}" for k, n in s["skipped"].items()))
+    unseen = [k for k, n in s["beyond_gimbal"].items() if s["stations"].get(k, 0) == 0]
+    if unseen:
+        print(f"not photographed at all, every view beyond the gimbal's "
+              f"{s['max_gimbal_up_deg']:g} deg up: {', '.join(unseen)} (park the rotor with "
+              "that blade pointing down, or fly a gimbal that looks further up; "
+              "docs/inspection.md#platforms)")
+    for fmt, files in s["missions"]["formats"].items():
+        n = len(files)
+        print(f"{fmt}: {files[0] if n == 1 else f'{files[0]} .. {files[-1]}'}"
+              + ("" if n == 1 else f" ({n} missions)"))
     print(f"wrote {args.out}")
     return 0

@@ -73,6 +73,9 @@ SECTION_SLOPE = 0.15
 #: error at the blades (1.1 m: the fitted blades' points to 0.5 m, and the flat section
 #: against a real blade's, twisted 14 deg at the root: its edge 0.01 blade lengths off).
 MIN_STANDOFF = 3.0
+#: The least distance between a transit point and its neighbours [m]: DJI's waypoint
+#: missions (Litchi's) take waypoints at least 0.5 m apart.
+MIN_LEG = 0.5
 #: The least tower clearance [m] (``plan --tower-clearance``, and the default's floor):
 #: the drone's radius and hovering error; the tower and the nacelle are modelled better
 #: than the blades.
@@ -146,6 +149,8 @@ class Plan:
         gsd_mm: the resolution at the stand-off [mm/px].
         skipped: per (part, side) the stations no view could clear.
         stations: per (part, side) the stations planned (photos).
+        beyond_gimbal: per (part, side) the stations left out because every view of them
+            looks up more steeply than the gimbal can (part of ``skipped``).
         min_rotor_clearance: least distance of the path (waypoints and legs) from the
             blades and the spinner [m], from :func:`check_plan` (a lower bound).
         min_tower_clearance: the same from the tower and the nacelle [m].
@@ -156,6 +161,7 @@ class Plan:
     gsd_mm: float
     skipped: dict[tuple[int, int], int] = field(default_factory=dict)
     stations: dict[tuple[int, int], int] = field(default_factory=dict)
+    beyond_gimbal: dict[tuple[int, int], int] = field(default_factory=dict)
     min_rotor_clearance: float = math.inf
     min_tower_clearance: float = math.inf
     check_s: float = 0.0
@@ -323,7 +329,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         normals = np.cos(tw) * bl.normal - np.sin(tw) * bl.chord
         for side in range(4):
             normal0 = [bl.chord, bl.normal, -bl.chord, -bl.normal][side]
-            sw, blocked = [], 0
+            sw, blocked, steep = [], 0, 0
             for j, sp in enumerate(spans):
                 w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal0,
                             (float(A[j]), float(B[j]), chords[j], normals[j]))
@@ -331,9 +337,11 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                     sw.append(w)
                 else:
                     blocked += w == "clearance"
+                    steep += w == "gimbal"
             sweeps[(i, side)] = sw
             plan.stations[(i, side)] = len(sw)
             plan.skipped[(i, side)] = len(spans) - len(sw)
+            plan.beyond_gimbal[(i, side)] = steep
             if blocked > 0.5 * len(spans):
                 raise PlanError(
                     f"a stand-off of {d:g} m meets the rotor: only {len(sw)} of {len(spans)} "
@@ -476,6 +484,16 @@ def _stations(lo: float, hi: float, foot: float, step: float) -> FloatArray:
     return np.linspace(a, b, n)
 
 
+def _drop_close(p: FloatArray, least: float = MIN_LEG) -> FloatArray:
+    """The polyline ``p`` (n, 3) without the inner points closer than ``least`` to the
+    point kept before them or to the last point (the ends are kept)."""
+    kept = [p[0]]
+    for q in p[1:-1]:
+        if np.linalg.norm(q - kept[-1]) >= least and np.linalg.norm(q - p[-1]) >= least:
+            kept.append(q)
+    return np.stack([*kept, p[-1]])
+
+
 def _densify(p: FloatArray, step: float = 0.5) -> FloatArray:
     """Points along the polyline ``p`` (n, 3) at most ``step`` apart."""
     if len(p) < 2:
@@ -551,6 +569,7 @@ class _Router:
         for r in routes:
             pts = np.stack([pa, *r, pb])
             pts[:, 2] = np.maximum(pts[:, 2], self.min_alt)
+            pts = _drop_close(pts)
             if self._clear(pts):
                 best = list(pts[1:-1])
                 break

@@ -434,6 +434,8 @@ class BoxLocation:
         chord: on a blade, the median position of those samples along the chord line
             (:meth:`TurbineSurface.chord_position`: -1 trailing edge .. 1 leading edge);
             else None.
+        world_p: the surface point [m, world] of that part's sample at the median span (at
+            the median distance on the nacelle and hub), or None.
     """
 
     part: str | None
@@ -444,6 +446,7 @@ class BoxLocation:
     distance_m: float | None
     on_part: float
     chord: float | None = None
+    world_p: tuple[float, float, float] | None = None
 
 
 #: Sample pixels a side of a box in :func:`locate_box` (at most; one per pixel).
@@ -478,8 +481,11 @@ def locate_box(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
     chord = None
     if k < TOWER:
         chord = float(np.median(surface.chord_position(k, points[on])))
+    key = spans if has_span else hits.distance[on]
+    p = points[on][int(np.argmin(np.abs(key - np.median(key))))]
     return BoxLocation(PARTS[k], side,
                        float(np.median(spans)) if has_span else None,
                        float(spans.min()) if has_span else None,
                        float(spans.max()) if has_span else None,
-                       float(np.median(hits.distance[on])), float(on.mean()), chord)
+                       float(np.median(hits.distance[on])), float(on.mean()), chord,
+                       (float(p[0]), float(p[1]), float(p[2])))

@@ -31,7 +31,8 @@ poses and angles convert both ways exactly (:func:`world_T_cam_from_gimbal`,
 ``latitude`` and ``longitude`` of the fitted tower base, and ``keyframes_wgs84.csv``
 lists each optimised camera as ``timestamp,latitude,longitude,altitude,yaw,pitch,roll``
 in the same gimbal convention, so that the angles read back as ``import dji`` reads a
-photo's.
+photo's; ``keyframes_wgs84.csvt`` and ``.prj`` beside it make GDAL and QGIS open it as
+EPSG:4326 points, and ``keyframes_wgs84.geojson`` is the same points as GeoJSON.
 """
 
 from __future__ import annotations
@@ -261,11 +262,24 @@ def location_text(georef: Georef | None, turbine: TurbineParams) -> str:
     return "" if georef is None else location_lines(georef, turbine)
 
 
+#: The GIS files next to ``keyframes_wgs84.csv``: GDAL's sidecars (column types with the
+#: coordinates marked, EPSG:4326) and the GeoJSON twin (:mod:`turbinefit.io.geojson`).
+WGS84_SIDECARS = ("keyframes_wgs84.csvt", "keyframes_wgs84.prj", "keyframes_wgs84.geojson")
+#: Column types of ``keyframes_wgs84.csv`` for GDAL's ``.csvt``.
+WGS84_TYPES = {"timestamp": "Real", "latitude": "CoordY", "longitude": "CoordX",
+               "altitude": "Real", "yaw": "Real", "pitch": "Real", "roll": "Real"}
+
+
 def write_georef_outputs(out_dir: Path, georef: Georef | None, timestamps: ArrayLike,
                          world_T_cam: SE3) -> None:
     """On a georeferenced flight (``georef`` not None): write
-    ``out_dir/keyframes_wgs84.csv``. Nothing without a georef."""
+    ``out_dir/keyframes_wgs84.csv`` and its GIS files (:data:`WGS84_SIDECARS`: it opens in
+    QGIS and GDAL as EPSG:4326 points without being asked). Nothing without a georef."""
+    from turbinefit.io.geojson import write_csv_sidecars, write_geojson_twin
+
     if georef is None:
         return
-    write_text_atomic(out_dir / WGS84_CSV, format_wgs84_csv(georef, timestamps, world_T_cam),
-                      fsync=False)
+    text = format_wgs84_csv(georef, timestamps, world_T_cam)
+    write_text_atomic(out_dir / WGS84_CSV, text, fsync=False)
+    write_csv_sidecars(out_dir / WGS84_CSV, WGS84_HEADER, WGS84_TYPES)
+    write_geojson_twin(out_dir / WGS84_CSV, text)

@@ -15,6 +15,18 @@ them into glTF's frame: the world frame of the fit (that of ``keyframes.txt`` an
 its base is at the fitted place (in double precision: the node's matrix is JSON). The
 scene's ``extras`` hold the fitted turbine, the shape details and that rule.
 
+**Georeference.** On a georeferenced flight the glTF's ``asset.extras`` hold
+``turbinefit_georeference`` (:func:`georeference_extras`): the world frame's WGS84 origin
+(``latitude``, ``longitude``, ``altitude`` in the flight's datum), the axes (glTF x east,
+y up, z south: ``(x, y, z)_glTF = (east, up, -north)``) and ``ecef_from_enu``, the 4 x 4
+transform (column-major, as glTF and 3D Tiles write matrices) from east-north-up metres
+about the origin to Earth-centred Earth-fixed WGS84 metres. That is the ``transform`` a
+3D Tiles tileset (CesiumJS, Cesium ion, ArcGIS, QGIS 3.34's tiled scenes) gives its
+root tile for this file as content, since 3D Tiles turns a glTF's y-up into z-up
+(east-north-up here) before it; an extras block rather than an extension because no
+glTF 2.0 extension georeferences a model (CESIUM_RTC was glTF 1.0's, and sets a centre
+but no orientation).
+
 Written with pygltflib (MIT licence), imported only when a file is written: it imports in
 about 0.06 s, where trimesh, which pulls in scipy.spatial and networkx, takes 0.6-1.7 s on
 this project's machine (``python -X importtime -c "import pygltflib"``, and the same for
@@ -31,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.io.atomic import StrPath, write_bytes_atomic
+from turbinefit.io.georef import Georef
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams
 from turbinefit.turbine.solid import SolidPart, TurbineSolid, solid_mesh
 
@@ -53,8 +66,30 @@ _FLOAT, _UINT32 = 5126, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
-def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry) -> bytes:
-    """The binary glTF of ``turbine`` (see the module docstring)."""
+def georeference_extras(georef: Georef) -> dict[str, Any]:
+    """The ``turbinefit_georeference`` block of ``asset.extras`` (module docstring)."""
+    import pymap3d
+
+    lat, lon = math.radians(georef.latitude), math.radians(georef.longitude)
+    east = [-math.sin(lon), math.cos(lon), 0.0]
+    north = [-math.sin(lat) * math.cos(lon), -math.sin(lat) * math.sin(lon), math.cos(lat)]
+    up = [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
+    origin = [float(v) for v in pymap3d.geodetic2ecef(georef.latitude, georef.longitude,
+                                                      georef.altitude)]
+    return {
+        "latitude": georef.latitude, "longitude": georef.longitude,
+        "altitude": georef.altitude,
+        "altitude_datum": "the flight's (georef.yaml), taken as WGS84 ellipsoidal height",
+        "axes": "(x, y, z)_glTF = (east, up, -north) metres from the origin",
+        "ecef_from_enu": [*east, 0.0, *north, 0.0, *up, 0.0, *origin, 1.0],
+        "ecef_from_enu_layout": "4x4, column-major (glTF, 3D Tiles): the tileset transform",
+    }
+
+
+def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry,
+                georef: Georef | None = None) -> bytes:
+    """The binary glTF of ``turbine`` (see the module docstring); with ``georef``, its
+    georeference in ``asset.extras``."""
     import pygltflib as gl
 
     theta = turbine.to_vector()
@@ -64,7 +99,8 @@ def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry) -> bytes:
     solid = TurbineSolid(theta, geometry)
     matrix = (GLTF_FROM_WORLD @ world_T_local).T.ravel().tolist()  # column-major
     blob = bytearray()
-    doc = gl.GLTF2(asset=gl.Asset(generator="turbinefit"), scene=0)
+    extras = {} if georef is None else {"turbinefit_georeference": georeference_extras(georef)}
+    doc = gl.GLTF2(asset=gl.Asset(generator="turbinefit", extras=extras), scene=0)
     for part in solid_mesh(solid):
         vertices, normals, faces = smooth_normals(part, math.radians(SHARP_EDGE_DEG))
         vertices = vertices.astype(np.float32)
@@ -98,10 +134,10 @@ def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry) -> bytes:
     return b"".join(doc.save_to_bytes())
 
 
-def write_turbine_glb(path: StrPath, turbine: TurbineParams, geometry: TurbineGeometry
-                      ) -> Path:
+def write_turbine_glb(path: StrPath, turbine: TurbineParams, geometry: TurbineGeometry,
+                      georef: Georef | None = None) -> Path:
     """Write :func:`turbine_glb` to ``path`` atomically; returns the path."""
-    return write_bytes_atomic(path, turbine_glb(turbine, geometry), fsync=False)
+    return write_bytes_atomic(path, turbine_glb(turbine, geometry, georef), fsync=False)
 
 
 def smooth_normals(part: SolidPart, sharp: float

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera
@@ -42,6 +44,7 @@ from turbinefit.io.atomic import read_text, write_text_atomic
 from turbinefit.io.camera_yaml import read_camera_yaml
 from turbinefit.io.defects import LocatedDamage
 from turbinefit.io.flight_folder import CAMERA_FILE, IMAGE_DIR, KEYFRAMES_FILE, TURBINE_FILE
+from turbinefit.io.geojson import write_geojson_twin
 from turbinefit.io.georef import Georef, read_flight_georef
 from turbinefit.io.quantities import Quantity
 from turbinefit.io.tum import read_tum_lines
@@ -61,7 +64,8 @@ if TYPE_CHECKING:
     from turbinefit.eval.damage import DamageScore
 
 COVERAGE_OUTPUTS = OutputKind("coverage", frozenset({
-    "coverage.csv", "sides.csv", "summary.json", "coverage.png", "damage.csv"}))
+    "coverage.csv", "sides.csv", "summary.json", "coverage.png", "damage.csv",
+    "coverage.geojson", "damage.geojson"}))
 
 #: ``--step``, between samples along a part [m]: from 1 cm (a 60 m blade is 6,000 samples
 #: a side; memory grows as keyframes x samples) to 5 m (still several samples on the
@@ -72,6 +76,10 @@ GSD_MM = Quantity("ground sampling distance", "mm/px", 0.0, 1000.0, lo_open=True
 #: ``--blade-pitch`` and ``--blade-twist`` [deg].
 BLADE_ANGLE_DEG = Quantity("blade angle", "deg", -90.0, 90.0)
 
+#: Columns a georeferenced flight's ``coverage.csv`` and ``damage.csv`` end with: WGS84
+#: [deg] and altitude [m, the flight's datum] of the photo's camera (coverage) or of the
+#: box's point on the turbine (damage).
+GEO_COLUMNS = ("latitude", "longitude", "altitude")
 #: Columns of ``damage.csv`` (:func:`format_damage_csv`).
 DAMAGE_COLUMNS = ("photo", "timestamp", "keyframe", "class", "xmin", "ymin", "xmax", "ymax",
                   "part", "side", "span_m", "span_from_m", "span_to_m", "distance_m",
@@ -186,13 +194,30 @@ class CoverageReport:
     damage_score: DamageScore | None = None
 
 
-def format_coverage_csv(coverage: Coverage, timestamps: Any) -> str:
-    """The text of ``coverage.csv``."""
-    lines = [",".join(COVERAGE_COLUMNS)]
-    for r in coverage.rows:
+def _geo(georef: Georef | None, world_p: Any) -> list[str]:
+    """The :data:`GEO_COLUMNS` cells of points ``world_p`` (N, 3; NaN rows: empty cells),
+    one list per point; nothing without a georef."""
+    p = np.asarray(world_p, dtype=np.float64).reshape(-1, 3)
+    if georef is None:
+        return [""] * len(p)
+    ok = np.all(np.isfinite(p), axis=1)
+    lat, lon, alt = georef.geodetic(np.where(ok[:, None], p, 0.0))
+    return [f",{lat[i]:.10f},{lon[i]:.10f},{alt[i]:.3f}" if ok[i] else ",,,"
+            for i in range(len(p))]
+
+
+def format_coverage_csv(coverage: Coverage, timestamps: Any, georef: Georef | None = None,
+                        world_T_cam: SE3 | None = None) -> str:
+    """The text of ``coverage.csv``; with ``georef`` (and the keyframes' ``world_T_cam``)
+    each row ends with the keyframe's camera position in WGS84 (:data:`GEO_COLUMNS`)."""
+    lines = [",".join(COVERAGE_COLUMNS + (GEO_COLUMNS if georef is not None else ()))]
+    geo = _geo(georef if world_T_cam is not None else None,
+               world_T_cam.translation[[r.keyframe for r in coverage.rows]]
+               if world_T_cam is not None else np.zeros((len(coverage.rows), 3)))
+    for r, g in zip(coverage.rows, geo, strict=True):
         lines.append(f"{float(timestamps[r.keyframe]):.6f},{r.keyframe},{PARTS[r.part]},"
                      f"{r.span_from:.2f},{r.span_to:.2f},{r.visible_m:.2f},{'+'.join(r.sides)},"
-                     f"{r.distance_m:.2f},{r.gsd_mm_px:.3f}")
+                     f"{r.distance_m:.2f},{r.gsd_mm_px:.3f}{g}")
     return "\n".join(lines) + "\n"
 
 
@@ -293,21 +318,26 @@ def read_damage_boxes(path: Path, photos_dir: Path, fit: FitOutput, camera: Pinh
     return out
 
 
-def format_damage_csv(boxes: list[DamageBox], timestamps: Any) -> str:
+def format_damage_csv(boxes: list[DamageBox], timestamps: Any,
+                      georef: Georef | None = None) -> str:
     """The text of ``damage.csv``: one row per box (:data:`DAMAGE_COLUMNS`; the box in the
-    CSV's pixels; empty cells where the box shows no part, side or span)."""
+    CSV's pixels; empty cells where the box shows no part, side or span); with ``georef``
+    each row ends with the box's point on the turbine in WGS84 (:data:`GEO_COLUMNS`, empty
+    where the box shows no turbine)."""
     def num(v: float | None, fmt: str) -> str:
         return "" if v is None else format(v, fmt)
 
-    lines = [",".join(DAMAGE_COLUMNS)]
-    for d in boxes:
+    lines = [",".join(DAMAGE_COLUMNS + (GEO_COLUMNS if georef is not None else ()))]
+    nan3 = (math.nan, math.nan, math.nan)
+    geo = _geo(georef, [d.location.world_p or nan3 for d in boxes])
+    for d, g in zip(boxes, geo, strict=True):
         loc = d.location
         lines.append(",".join([
             d.photo, f"{float(timestamps[d.keyframe]):.6f}", str(d.keyframe), d.label,
             *(f"{v:g}" for v in d.box), loc.part or "", loc.side or "",
             num(loc.span_m, ".2f"), num(loc.span_from_m, ".2f"), num(loc.span_to_m, ".2f"),
             num(loc.distance_m, ".2f"), f"{loc.on_part:.2f}", num(loc.chord, ".3f"),
-            d.defect]))
+            d.defect]) + g)
     return "\n".join(lines) + "\n"
 
 
@@ -392,18 +422,23 @@ def coverage_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[
         summary["damage_score"] = {**score.summary(), "truth": str(truth),
                                    "per_defect": score.rows()}
     with COVERAGE_OUTPUTS.writing(out_dir, overwrite) as tmp:
-        write_text_atomic(tmp / "coverage.csv", format_coverage_csv(cov, fit.timestamps),
-                          fsync=False)
+        text = format_coverage_csv(cov, fit.timestamps, fit.georef, fit.world_T_cam)
+        write_text_atomic(tmp / "coverage.csv", text, fsync=False)
+        if fit.georef is not None:
+            write_geojson_twin(tmp / "coverage.csv", text)
         write_text_atomic(tmp / "sides.csv", format_sides_csv(cov, fit.timestamps),
                           fsync=False)
         if damage_boxes is not None:
-            write_text_atomic(tmp / "damage.csv", format_damage_csv(damage_boxes, fit.timestamps),
-                              fsync=False)
+            text = format_damage_csv(damage_boxes, fit.timestamps, fit.georef)
+            write_text_atomic(tmp / "damage.csv", text, fsync=False)
+            if fit.georef is not None:
+                write_geojson_twin(tmp / "damage.csv", text)
         if plots:
             from turbinefit.plots.inspection import plot_coverage
 
             try:
-                plot_coverage(tmp / "coverage.png", cov, max_gsd_mm)
+                plot_coverage(tmp / "coverage.png", cov, max_gsd_mm,
+                              math.sqrt(cam.fx * cam.fy))
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0

@@ -240,7 +240,8 @@ def fit_folder(
                            else result.signals.theta_std_dict(),
                            extra=location_text(georef, result.turbine))
         write_georef_outputs(tmp, georef, flight.timestamps, result.world_T_cam)
-        write_turbine_glb(tmp / "turbine.glb", result.turbine, result.config.geometry)
+        write_turbine_glb(tmp / "turbine.glb", result.turbine, result.config.geometry,
+                          georef)
         write_text_atomic(tmp / "config.yaml", format_fit_config(result.config), fsync=False)
         if plots:
             t3 = time.perf_counter()

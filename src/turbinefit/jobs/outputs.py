@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -47,18 +48,21 @@ class OutputKind:
         command: the command's name (for messages).
         entries: the file names it writes, or None to allow any name with ``suffixes``.
         suffixes: the file suffixes it writes (with ``entries=None``).
+        patterns: regular expressions of further names it writes (numbered files).
     """
 
     command: str
     entries: frozenset[str] | None = None
     suffixes: tuple[str, ...] = ()
+    patterns: tuple[str, ...] = ()
 
     def foreign_entry(self, folder: Path) -> str | None:
         """None if ``folder`` holds nothing but files this command writes (safe to
         replace), else why not."""
         for entry in folder.iterdir():
             ok = (entry.name in self.entries if self.entries is not None
-                  else entry.suffix in self.suffixes)
+                  else entry.suffix in self.suffixes) or any(
+                      re.fullmatch(p, entry.name) for p in self.patterns)
             if not ok or not entry.is_file():
                 return f"{entry.name!r} is not an output of turbinefit {self.command}"
         return None
@@ -153,9 +157,11 @@ def summary_json(summary: Summary | Mapping[str, Any]) -> str:
 
 FIT_OUTPUTS = OutputKind("fit", frozenset({
     "keyframes.txt", "turbine.yaml", "turbine.glb", "config.yaml", "summary.json", "scene.png",
-    "reprojections.png", "errors.png", "cost.png", "keyframes_wgs84.csv"}))
+    "reprojections.png", "errors.png", "cost.png", "keyframes_wgs84.csv",
+    "keyframes_wgs84.csvt", "keyframes_wgs84.prj", "keyframes_wgs84.geojson"}))
 TRACK_OUTPUTS = OutputKind("track", frozenset({
     "causal.txt", "keyframes.txt", "turbine.yaml", "turbine.glb", "latency.csv", "latency.png",
-    "config.yaml", "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv"}))
+    "config.yaml", "summary.json", "scene.png", "errors.png", "keyframes_wgs84.csv",
+    "keyframes_wgs84.csvt", "keyframes_wgs84.prj", "keyframes_wgs84.geojson"}))
 #: ``detect`` writes ``<stem>.npy`` heat-maps and a ``<stem>.png`` overlay per photo.
 DETECT_OUTPUTS = OutputKind("detect", None, (".npy", ".png"))

@@ -2,8 +2,12 @@
 (:mod:`turbinefit.inspection.plan`), written as ``waypoints.csv``, the photos' poses
 (``keyframes.txt``, TUM, with the fitted ``turbine.yaml``: the folder is one ``coverage``
 reads, so the coverage a plan reaches is ``turbinefit coverage PLAN_DIR --camera ...``),
-``summary.json`` and ``path.png``; for a georeferenced flight also
-``waypoints_wgs84.csv`` and ``waypoints.kml``.
+``summary.json`` and ``path.png``; for a georeferenced flight (or one placed with
+``origin``) also ``waypoints_wgs84.csv``, the mission files of ``formats``
+(:mod:`turbinefit.jobs.mission_files`: ``waypoints.kml``, DJI WPML, Litchi, QGroundControl
+and MAVLink missions) and the GeoJSON twins of the waypoint CSVs. The plan keeps within
+the ``platform``'s gimbal (:mod:`turbinefit.io.platforms`; ``generic``, within every common
+DJI gimbal's range, unless named) and its missions within the waypoints it takes.
 
 The KML is written by hand with :mod:`xml.etree.ElementTree`: it is one ``LineString``
 and a ``Point`` per photo, and the KML libraries are either unmaintained (simplekml's last
@@ -17,6 +21,7 @@ import math
 import os
 import time
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,11 +46,20 @@ from turbinefit.inspection.plan import (
 from turbinefit.inspection.plan import tower_clearance as tower_clearance_of
 from turbinefit.inspection.surface import PARTS, TurbineSurface
 from turbinefit.io.atomic import write_text_atomic
+from turbinefit.io.geojson import write_geojson_twin
 from turbinefit.io.georef import Georef, gimbal_from_world_T_cam
-from turbinefit.io.quantities import Quantity
+from turbinefit.io.platforms import DEFAULT_PLATFORM, drone_platform
+from turbinefit.io.quantities import Quantity, check_latlonalt
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
 from turbinefit.jobs.coverage import read_fit_output
+from turbinefit.jobs.mission_files import (
+    FILE_PATTERNS,
+    check_flyable,
+    check_formats,
+    mission_points,
+    write_mission_files,
+)
 from turbinefit.jobs.outputs import (
     OutputKind,
     check_not_input,
@@ -56,7 +70,8 @@ from turbinefit.jobs.outputs import (
 
 PLAN_OUTPUTS = OutputKind("plan", frozenset({
     "waypoints.csv", "waypoints_wgs84.csv", "waypoints.kml", "keyframes.txt", "turbine.yaml",
-    "summary.json", "path.png"}))
+    "summary.json", "path.png", "waypoints.geojson", "waypoints_wgs84.geojson"}),
+    patterns=FILE_PATTERNS)
 #: ``--standoff`` [m]: at least :data:`~turbinefit.inspection.plan.MIN_STANDOFF` (a
 #: drone's size, its hovering error, the model's error), at most 100 m: a photo of a
 #: blade from further resolves nothing a survey from the ground would not.
@@ -69,8 +84,14 @@ TOWER_CLEARANCE = Quantity("tower clearance", "m", MIN_TOWER_CLEARANCE, MAX_STAN
 GSD = Quantity("resolution", "mm/px", 0.0, 100.0, lo_open=True)
 #: ``--overlap``: the share of the footprint neighbouring photos share.
 OVERLAP = Quantity("overlap", "", 0.0, 0.9, hi_open=True)
-#: ``--max-gimbal-up`` [deg]: from level (a gimbal that only looks down) to straight up.
+#: ``--max-gimbal-up`` [deg]: from level (a gimbal that only looks down) to straight up
+#: (and at most the platform's gimbal).
 GIMBAL_UP = Quantity("largest upward gimbal pitch", "deg", 0.0, 90.0)
+#: ``--speed`` [m/s]: the missions' cruise speed (and at most the platform's top speed).
+SPEED = Quantity("speed", "m/s", 0.5, 15.0)
+#: The missions' cruise speed unless given [m/s]: near a structure, slow enough to stop
+#: within the hovering error.
+DEFAULT_SPEED = 3.0
 #: The option of each of :class:`~turbinefit.inspection.plan.PlanOptions`'s fields.
 OPTION_NAMES = {"standoff": "--standoff", "max_gsd_mm": "--gsd", "overlap": "--overlap",
                 "max_gimbal_up_deg": "--max-gimbal-up", "tower_clearance": "--tower-clearance",
@@ -104,14 +125,20 @@ def photo_poses(plan: Plan) -> SE3:
                                    np.array([w.pitch for w in ph]), 0.0)
 
 
-def format_waypoints_csv(plan: Plan) -> str:
-    """The text of ``waypoints.csv`` (world frame, yaw from the x axis counter-clockwise)."""
-    rows = [WAYPOINT_COLUMNS]
+def format_waypoints_csv(plan: Plan, georef: Georef | None = None) -> str:
+    """The text of ``waypoints.csv`` (world frame, yaw from the x axis counter-clockwise);
+    with ``georef`` each row ends with its WGS84 ``latitude,longitude,altitude``."""
+    rows = [WAYPOINT_COLUMNS + (",latitude,longitude,altitude" if georef else "")]
+    if georef is not None:
+        lat, lon, alt = georef.geodetic(np.array([w.position for w in plan.waypoints]))
     for i, w in enumerate(plan.waypoints):
         part, side, span = _label(w)
         x, y, z = (float(v) for v in w.position)
-        rows.append(f"{i},{x:.3f},{y:.3f},{z:.3f},{math.degrees(w.yaw):.3f},"
-                    f"{math.degrees(w.pitch):.3f},{int(w.photo)},{part},{side},{span}")
+        row = (f"{i},{x:.3f},{y:.3f},{z:.3f},{math.degrees(w.yaw):.3f},"
+               f"{math.degrees(w.pitch):.3f},{int(w.photo)},{part},{side},{span}")
+        if georef is not None:
+            row += f",{lat[i]:.10f},{lon[i]:.10f},{alt[i]:.3f}"
+        rows.append(row)
     return "\n".join(rows) + "\n"
 
 
@@ -172,11 +199,22 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                 standoff: float, max_gsd_mm: float | None = None,
                 camera: PinholeCamera | None = None,
                 flight_dir: str | os.PathLike[str] | None = None, overlap: float = 0.3,
-                max_gimbal_up_deg: float = 90.0, tower_clearance: float | None = None,
-                plots: bool = True, overwrite: bool = False) -> PlanReport:
+                max_gimbal_up_deg: float | None = None, tower_clearance: float | None = None,
+                platform: str | None = None, formats: Sequence[str] | None = None,
+                origin: tuple[float, float, float] | None = None,
+                speed: float = DEFAULT_SPEED, plots: bool = True,
+                overwrite: bool = False) -> PlanReport:
     """Plan the next flight round the fit in ``fit_dir`` (its fitted turbine, stopped at its
-    blade rotation) at ``standoff`` metres with ``camera`` (default: the photos' camera of
-    the flight the fit came from) and write it to ``out_dir`` (see the module docstring).
+    blade rotation) at ``standoff`` metres with ``camera`` (default: the ``platform``'s,
+    else the photos' camera of the flight the fit came from) and write it to ``out_dir``
+    (see the module docstring).
+
+    ``platform`` (a name of :mod:`turbinefit.io.platforms`' table, default ``generic``)
+    bounds the gimbal's upward pitch (``max_gimbal_up_deg``, default the platform's, may
+    only be lower), the cruise ``speed`` and the waypoints of a mission. ``formats``: the
+    mission files to write (default: ``kml`` on a georeferenced flight); they need a
+    georeferenced flight (``georef.yaml``) or ``origin`` (latitude, longitude, altitude of
+    the world frame's origin, the take-off point) for one without.
 
     The path is checked before anything is written
     (:func:`~turbinefit.inspection.plan.check_plan`, independent of the planner's
@@ -186,25 +224,58 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
 
     Raises:
         InputError: a number out of its range (``STANDOFF``, ``GSD``, ``OVERLAP``,
-            ``GIMBAL_UP``, ``TOWER_CLEARANCE``, named by its option), a fit folder without
-            poses or turbine, a stand-off that meets the rotor, a resolution ``max_gsd_mm``
-            the camera cannot reach at the stand-off, a path that fails its check, a bad
-            ``out_dir``; nothing is written.
+            ``GIMBAL_UP``, ``TOWER_CLEARANCE``, ``SPEED``, named by its option), an unknown
+            platform or format, a format the platform does not fly, a gimbal pitch or speed
+            beyond the platform's, mission files without a georeference, ``origin`` on a
+            georeferenced flight, a fit folder without poses or turbine, a stand-off that
+            meets the rotor, a resolution ``max_gsd_mm`` the camera cannot reach at the
+            stand-off, a path that fails its check, a bad ``out_dir``; nothing is written.
     """
     t0 = time.perf_counter()
     standoff = STANDOFF.check(standoff, field="--standoff")
     if max_gsd_mm is not None:
         max_gsd_mm = GSD.check(max_gsd_mm, field="--gsd")
     overlap = OVERLAP.check(overlap, field="--overlap")
+    drone = drone_platform(platform or DEFAULT_PLATFORM)
+    up_limit = min(drone.gimbal_max_deg, 90.0)
+    if max_gimbal_up_deg is None:
+        max_gimbal_up_deg = up_limit
     max_gimbal_up_deg = GIMBAL_UP.check(max_gimbal_up_deg, field="--max-gimbal-up")
+    if max_gimbal_up_deg > up_limit:
+        raise InputError(f"{max_gimbal_up_deg:g} deg is beyond the gimbal of platform "
+                         f"{drone.key} ({drone.name}: up to {up_limit:g} deg)",
+                         field="--max-gimbal-up")
+    speed = SPEED.check(speed, field="--speed")
+    if speed > drone.max_speed_m_s:
+        raise InputError(f"{speed:g} m/s is faster than platform {drone.key} flies missions "
+                         f"({drone.max_speed_m_s:g} m/s)", field="--speed")
+    asked = formats is not None
+    mission_formats = check_formats(formats if formats is not None else ["kml"],
+                                    drone if asked else drone_platform("generic"))
     if tower_clearance is not None:
         tower_clearance = TOWER_CLEARANCE.check(tower_clearance, field="--tower-clearance")
+    if origin is not None:
+        origin = check_latlonalt(*origin, prefix="--origin ")  # type: ignore[assignment]
     fit_dir, out_dir = Path(fit_dir), Path(out_dir)
     inputs = [fit_dir] + ([] if flight_dir is None else [Path(flight_dir)])
     PLAN_OUTPUTS.check(out_dir, inputs, overwrite)
-    fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None)
+    fit = read_fit_output(fit_dir, flight_dir, need_camera=camera is None and drone.camera is None)
     if fit.flight_dir is not None:
         check_not_input(out_dir, [fit.flight_dir])
+    georef, georeference = fit.georef, "georef.yaml" if fit.georef is not None else None
+    if origin is not None:
+        if georef is not None:
+            raise InputError("the flight is georeferenced (its georef.yaml); --origin only "
+                             "places a flight without one", field="--origin")
+        georef, georeference = Georef(*origin), "--origin"
+    if georef is None:
+        if asked:
+            raise InputError(f"{', '.join(mission_formats)} need a georeferenced fit: a "
+                             "flight with georef.yaml (turbinefit import dji), or --origin "
+                             "LAT,LON,ALT to place this one", field="--format")
+        mission_formats = ()
+    if camera is None and drone.camera is not None:
+        camera = PinholeCamera(*drone.camera.intrinsics())
     cam = camera or fit.camera
     assert cam is not None
     surface = TurbineSurface(fit.turbine, fit.geometry)
@@ -216,15 +287,20 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         plan = plan_path(surface, cam, options, samples)
     except PlanError as exc:
         raise InputError(str(exc), field=OPTION_NAMES.get(exc.option, exc.option)) from None
+    points = mission_points(plan, georef) if georef is not None else []
+    check_flyable(points, mission_formats, np.array([w.position for w in plan.waypoints]))
+    rth = math.ceil(float(surface.hub[2]) + surface.b + standoff + 5.0)
     timings = {"plan": time.perf_counter() - t0, "check": plan.check_s}
     stations = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.stations.items()}
     skipped = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.skipped.items() if n}
+    steep = {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.beyond_gimbal.items()
+             if n}
     summary = {
         "turbinefit_version": __version__, "fit": recorded_path(fit_dir, out_dir),
         "flight": None if fit.flight_dir is None else recorded_path(fit.flight_dir, out_dir),
         "standoff_m": standoff, "max_gsd_mm_px": max_gsd_mm, "gsd_mm_px": round(plan.gsd_mm, 4),
         "camera": {"width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy},
-        "overlap": overlap, "max_gimbal_up_deg": max_gimbal_up_deg,
+        "overlap": overlap, "platform": drone.key, "max_gimbal_up_deg": max_gimbal_up_deg,
         "waypoints": len(plan.waypoints), "photos": len(plan.photos),
         "length_m": round(plan.length_m, 2),
         "tower_clearance_m": tower_clearance_of(options),
@@ -234,31 +310,44 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
             "what": "least distance of every waypoint and every straight leg between them "
                     "from the solid (lower bounds), independent of the planner",
             "margin_m": round(check_margin_m, 3), "leg_step_m": LEG_STEP},
-        "stations": stations, "skipped": skipped,
+        "stations": stations, "skipped": skipped, "beyond_gimbal": steep,
         "blades": {bl.name: round(bl.clock_deg, 3) for bl in surface.blades},
-        "georeferenced": fit.georef is not None, "timing_s": timings,
+        "georeferenced": georef is not None, "georeference": georeference,
     }
     poses = photo_poses(plan)
     with PLAN_OUTPUTS.writing(out_dir, overwrite) as tmp:
-        write_text_atomic(tmp / "waypoints.csv", format_waypoints_csv(plan), fsync=False)
+        write_text_atomic(tmp / "waypoints.csv", format_waypoints_csv(plan, georef), fsync=False)
         write_tum(tmp / "keyframes.txt", np.arange(len(plan.photos), dtype=np.float64), poses,
                   comment="turbinefit plan: the planned photos' world_T_cam (timestamp = "
                   "photo number)")
         write_turbine_yaml(tmp / "turbine.yaml", fit.turbine,
                            comment="turbinefit plan: the fitted turbine planned round")
-        if fit.georef is not None:
-            write_text_atomic(tmp / "waypoints_wgs84.csv",
-                              format_wgs84_waypoints(plan, fit.georef), fsync=False)
-            write_text_atomic(tmp / "waypoints.kml",
-                              format_kml(plan, fit.georef, f"turbinefit plan of {fit_dir.name}"),
-                              fsync=False)
+        missions: dict[str, list[str]] = {}
+        if georef is not None:
+            wgs84 = format_wgs84_waypoints(plan, georef)
+            write_text_atomic(tmp / "waypoints_wgs84.csv", wgs84, fsync=False)
+            write_geojson_twin(tmp / "waypoints.csv", format_waypoints_csv(plan, georef))
+            write_geojson_twin(tmp / "waypoints_wgs84.csv", wgs84)
+            if "kml" in mission_formats:
+                write_text_atomic(tmp / "waypoints.kml",
+                                  format_kml(plan, georef, f"turbinefit plan of {fit_dir.name}"),
+                                  fsync=False)
+                missions["kml"] = ["waypoints.kml"]
+            missions.update(write_mission_files(
+                tmp, points, mission_formats, drone, georef, speed, rth,
+                f"turbinefit plan of {fit_dir.name}"))
+        summary["missions"] = {
+            "formats": missions, "speed_m_s": speed, "rth_height_m": rth,
+            "max_waypoints": drone.max_waypoints,
+            "heights": "above the take-off point: the georeference's origin"}
         if plots:
             from turbinefit.plots.inspection import plot_path
 
             try:
-                plot_path(tmp / "path.png", plan, surface)
+                plot_path(tmp / "path.png", plan, surface, georef)
             except OSError as exc:
                 raise plot_error(exc, out_dir) from exc
         timings["total"] = time.perf_counter() - t0
+        summary["timing_s"] = timings
         write_text_atomic(tmp / "summary.json", summary_json(summary), fsync=False)
     return PlanReport(plan, out_dir, summary, timings)

@@ -317,7 +317,7 @@ def track_folder(
         write_turbine_yaml(tmp / "turbine.yaml", turbine, comment=FITTED_TURBINE_COMMENT,
                            std=summary.final_sigma, extra=location_text(georef, turbine))
         write_georef_outputs(tmp, georef, folder.timestamps, final_poses)
-        write_turbine_glb(tmp / "turbine.glb", turbine, geometry)
+        write_turbine_glb(tmp / "turbine.glb", turbine, geometry, georef)
         rows = "".join(f"{t:.6f},{ms:.3f}\n" for t, ms in zip(folder.timestamps, latency,
                                                                strict=True))
         write_text_atomic(tmp / "latency.csv", "timestamp,latency_ms\n" + rows, fsync=False)

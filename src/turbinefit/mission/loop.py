@@ -59,7 +59,6 @@ from numpy.typing import NDArray
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, quat_exp, quat_multiply, world_T_cam_from_angles
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.inspection.clearance import SolidSamples, solid_samples
 from turbinefit.inspection.defects import Defect
 from turbinefit.inspection.plan import Plan, PlanError, PlanOptions, Waypoint, plan_path
 from turbinefit.inspection.surface import TurbineSurface
@@ -340,8 +339,8 @@ class _Maps:
 
             self.detector = HeatmapDetector()
         k = self.camera.width / 320.0
-        noise = replace(DEFAULT_HEATMAP_NOISE, spurious_length_px=tuple(
-            v * k for v in DEFAULT_HEATMAP_NOISE.spurious_length_px))
+        lo, hi = DEFAULT_HEATMAP_NOISE.spurious_length_px
+        noise = replace(DEFAULT_HEATMAP_NOISE, spurious_length_px=(lo * k, hi * k))
         self.render = RenderConfig(sigma_px=2.0 * k, noise=noise)
 
     def __call__(self, image: NDArray[np.uint8] | None, true: SE3) -> NDArray[np.float32]:
@@ -374,7 +373,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     path_rec: list[FloatArray] = []
     path_est: list[FloatArray] = []
     clock = [0.0]
-    last = [None]  # the last commanded position
+    last: list[FloatArray | None] = [None]  # the last commanded position
 
     def fly(target: SE3, photo: bool, stage: str, waypoint: Waypoint | None) -> Keyframe | None:
         """Fly to ``target`` (in the estimate's frame) and, with ``photo``, take one."""
@@ -443,9 +442,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     total = len(plan.photos)
     while queue:
         w = queue.pop(0)
-        kf = fly(_pose(w), w.photo, "inspection", w)
-        if kf is None:
+        shot = fly(_pose(w), w.photo, "inspection", w)
+        if shot is None:
             continue
+        kf = shot
         t0 = time.perf_counter()
         est = tracker.update(kf.timestamp, kf.recorded, kf.heatmaps,
                              position_sigma=kf.position_sigma if rtk else None)

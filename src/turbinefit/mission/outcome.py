@@ -85,9 +85,10 @@ def locate_defects(kfs: list[Keyframe], poses: SE3, turbine: TurbineParams,
     (one per keyframe), as rows of ``damage.csv``."""
     surface = TurbineSurface(turbine)
     out = []
-    for kf, pose in zip(kfs, poses, strict=True):
+    for i, kf in enumerate(kfs):
         for b in kf.boxes:
-            loc = locate_box(surface, camera, pose, tuple(float(x) for x in b.box))
+            x0, y0, x1, y1 = (float(x) for x in b.box)
+            loc = locate_box(surface, camera, poses[i], (x0, y0, x1, y1))
             area = float((b.box[2] - b.box[0]) * (b.box[3] - b.box[1]))
             out.append(LocatedDamage(f"{kf.index:04d}", kf.index, b.kind, loc.part, loc.side,
                                      loc.span_m, loc.chord, loc.distance_m, b.defect, area))
