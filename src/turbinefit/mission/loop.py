@@ -56,22 +56,33 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, quat_exp, quat_multiply, world_T_cam_from_angles
 from turbinefit.heatmaps import HeatmapStack
+from turbinefit.inspection.clearance import ROTOR, path_clearance, solid_samples
 from turbinefit.inspection.defects import Defect
-from turbinefit.inspection.plan import Plan, PlanError, PlanOptions, Waypoint, plan_path
+from turbinefit.inspection.plan import (
+    Plan,
+    PlanError,
+    PlanOptions,
+    Waypoint,
+    check_margin,
+    plan_path,
+)
 from turbinefit.inspection.surface import TurbineSurface
 from turbinefit.sim.defects import draw_defects
 from turbinefit.sim.gnss import GnssReceiver, gnss_model
+from turbinefit.sim.noise import OdometrySensor
 from turbinefit.sim.photos import DefectBox, FlightPhotos
 from turbinefit.sim.render import RenderConfig, render_heatmaps
 from turbinefit.sim.scenario import DEFAULT_HEATMAP_NOISE
 from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
 from turbinefit.sim.turbines import preset_turbine
 from turbinefit.solver.config import PHOTO_FIT_DEFAULTS, FitConfig
+from turbinefit.solver.fit import fit
 from turbinefit.solver.init import NotDetermined, TurbinePrior, initial_turbine
-from turbinefit.solver.tracker import Tracker, TrackerConfig
+from turbinefit.solver.tracker import Tracker, TrackerConfig, TrackEstimate
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineParams, model_points
 
 FloatArray = NDArray[np.float64]
@@ -81,10 +92,12 @@ FloatArray = NDArray[np.float64]
 MISSION_CAMERA = PinholeCamera(5280, 3956, 7350.0, 7350.0, 2639.5, 1977.5)
 #: Kinds of heat-maps a mission reads (module docstring).
 MAP_KINDS = ("photos", "ideal")
+#: Where the pose graph's relative motions come from (module docstring).
+ODOMETRY_KINDS = ("vio", "gnss")
 #: Width [px] of the heat-maps (the shipped CNN's output for a 320 px photo).
 MAP_WIDTH = 160
 #: Streams of the mission's random numbers (spawned from the seed, in this order).
-_STREAMS = ("turbine", "initial", "defects", "gnss", "maps")
+_STREAMS = ("turbine", "initial", "defects", "gnss", "maps", "odometry")
 
 
 @dataclass(frozen=True)
@@ -128,7 +141,12 @@ class MissionConfig:
         orbit_photos: photos of the approach orbit.
         initial_error: how far the typed-in turbine is from the truth.
         max_gimbal_up_deg: the gimbal's largest upward pitch [deg].
+        odometry: ``vio``: the drone's visual-inertial odometry gives the relative motions
+            between photos (body frame, :class:`~turbinefit.sim.noise.OdometrySensor`) and
+            the GNSS fixes anchor the positions (``gauge="gps"``, the model's sigma);
+            ``gnss``: the recorded GNSS poses give both.
         replan_m: replan when the turbine estimate's model points moved this far [m].
+        replan_every: and at most once every this many photos.
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
     """
@@ -146,7 +164,9 @@ class MissionConfig:
     orbit_photos: int = 24
     initial_error: InitialError = field(default_factory=InitialError)
     max_gimbal_up_deg: float = 90.0
-    replan_m: float = 0.3
+    odometry: Literal["vio", "gnss"] = "vio"
+    replan_m: float = 0.5
+    replan_every: int = 3
     speed_m_s: float = 4.0
     photo_s: float = 2.0
     tracker: TrackerConfig = field(default_factory=lambda: TrackerConfig(
@@ -158,12 +178,22 @@ class MissionConfig:
                              f"{', '.join(TURBINE_PRESETS)}")
         if self.maps not in MAP_KINDS:
             raise ValueError(f"maps must be one of {', '.join(MAP_KINDS)}, got {self.maps!r}")
+        if self.odometry not in ODOMETRY_KINDS:
+            raise ValueError(f"odometry must be one of {', '.join(ODOMETRY_KINDS)}, "
+                             f"got {self.odometry!r}")
         gnss_model(self.gnss)
         if self.orbit_photos < 8:
             raise ValueError(f"orbit_photos must be at least 8, got {self.orbit_photos}")
         if not 32 <= self.photo_width <= self.camera.width:
             raise ValueError(f"photo_width must be between 32 and the camera's width "
                              f"({self.camera.width}), got {self.photo_width}")
+
+    def fit_config(self) -> FitConfig:
+        """The cost and options of the tracker and the final fit: the tracker's, anchored
+        to the GNSS fixes (``gauge="gps"`` at the GNSS model's horizontal sigma: a compass
+        yaw bias is then estimated, not held fixed at the first keyframe's)."""
+        return replace(self.tracker.fit, gauge="gps",
+                       gps_sigma=max(float(gnss_model(self.gnss).horizontal_m), 0.01))
 
     def photo_camera(self) -> PinholeCamera:
         """The camera the photos are rendered with (:attr:`camera` scaled)."""
@@ -185,6 +215,9 @@ class Keyframe:
         stage: ``orbit`` or ``inspection``.
         true: the camera's true pose; recorded: the pose its GNSS fix recorded.
         position_sigma: (3,) the fix's reported position standard deviations [m].
+        heatmaps: (7, h, w) its heat-maps (the maps' camera); image: the photo (None with
+            ideal maps and no defects).
+        odometry: the odometry's pose (``odometry="vio"``), else None.
         causal: the tracker's estimate of the pose as the photo arrived (None: before the
             tracker started).
         waypoint: the plan's waypoint it was taken at (None: orbit).
@@ -201,6 +234,7 @@ class Keyframe:
     heatmaps: NDArray[np.float32]
     image: NDArray[np.uint8] | None = None
     causal: SE3 | None = None
+    odometry: SE3 | None = None
     waypoint: Waypoint | None = None
     boxes: tuple[DefectBox, ...] = ()
     update_s: float | None = None
@@ -366,6 +400,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
                           surface=True)
     maps_of = _Maps(cfg, truth, streams["maps"])
     receiver = GnssReceiver(gnss_model(cfg.gnss), streams["gnss"])
+    vio = OdometrySensor(streams["odometry"]) if cfg.odometry == "vio" else None
     rtk = cfg.gnss == "rtk"
     nav = Navigation(cfg.closed_loop)
     keyframes: list[Keyframe] = []
@@ -402,6 +437,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
                       None if shot is None else shot.image, waypoint=waypoint,
                       boxes=() if shot is None else shot.boxes)
         kf.update_s = dt_maps
+        kf.odometry = None if vio is None else vio.measure(true)
         keyframes.append(kf)
         return kf
 
@@ -415,15 +451,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
 
     # -- the initial turbine: init near the typed-in base, refined by a fit of the orbit
     t0 = time.perf_counter()
-    map_cam = cfg.map_camera()
-    stack = HeatmapStack(np.stack([k.heatmaps for k in keyframes]))
-    recorded = SE3(np.stack([k.recorded.wxyz_xyz for k in keyframes]))
-    initial, init_note = _initial_turbine(stack, map_cam, recorded, typed_in, cfg)
-    tracker = Tracker(map_cam, initial, cfg.tracker)
+    fit_cfg = cfg.fit_config()
+    initial, init_note = _initial_turbine(keyframes, cfg.map_camera(), typed_in, fit_cfg)
+    tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
     for kf in keyframes:
-        kf.causal = tracker.update(kf.timestamp, kf.recorded, kf.heatmaps,
-                                   position_sigma=kf.position_sigma if rtk else None
-                                   ).world_T_cam
+        kf.causal = _update(tracker, kf, rtk).world_T_cam
     nav.correct(keyframes[-1].recorded, tracker.world_T_cam()[len(keyframes) - 1])
     timings["init_s"] = time.perf_counter() - t0
 
@@ -436,7 +468,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     timings["plan_s"] += time.perf_counter() - t0
     plans = [plan]
     done: set[tuple[int, int, float]] = set()
-    replans = failures = 0
+    replans = failures = since = 0
     replan_errors: list[str] = []
     queue = list(plan.waypoints[1:])
     total = len(plan.photos)
@@ -447,22 +479,23 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             continue
         kf = shot
         t0 = time.perf_counter()
-        est = tracker.update(kf.timestamp, kf.recorded, kf.heatmaps,
-                             position_sigma=kf.position_sigma if rtk else None)
+        est = _update(tracker, kf, rtk)
         kf.update_s = (kf.update_s or 0.0) + time.perf_counter() - t0
         timings["track_s"] += time.perf_counter() - t0
         kf.causal = est.world_T_cam
         nav.correct(kf.recorded, est.world_T_cam)
         done.add((w.part, w.side, round(w.span, 6)))
+        since += 1
         if progress is not None:
             progress("inspection", len(done), total)
-        if not cfg.closed_loop or _moved(planned_for, tracker.turbine) < cfg.replan_m:
+        if (not cfg.closed_loop or since < cfg.replan_every
+                or _moved(planned_for, tracker.turbine) < cfg.replan_m):
             continue
         t0 = time.perf_counter()
+        since = 0
         try:
-            surface = TurbineSurface(tracker.turbine)
-            again = _replan(surface, cfg, options, done, plan, w,
-                            nav.believed(kf.recorded).translation)
+            again = _replan(TurbineSurface(tracker.turbine), cfg, options, done, plan,
+                            nav.believed(kf.recorded))
         except PlanError as e:
             failures += 1
             replan_errors.append(str(e))
@@ -482,20 +515,44 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
                    tracker, init_note, timings, replan_errors)
 
 
+def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
+    """The tracker's update with keyframe ``kf`` (its odometry, and its fix's sigmas with
+    RTK)."""
+    return tracker.update(kf.timestamp, kf.recorded, kf.heatmaps, odometry=kf.odometry,
+                          position_sigma=kf.position_sigma if rtk else None)
+
+
 def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
-            done: set[tuple[int, int, float]], previous: Plan, at: Waypoint,
-            here: FloatArray) -> Plan | None:
+            done: set[tuple[int, int, float]], previous: Plan, here: SE3) -> Plan | None:
     """The rest of the path planned again from ``surface`` (the current estimate): the
     stations of ``previous`` photographed (``done``) left out by their part, side and span
-    within half a station's spacing. None if nothing is left to photograph."""
+    within half a station's spacing, the path starting at the believed pose ``here``. If
+    the new estimate puts ``here`` within the stand-off, the path starts by backing away
+    along the view until it keeps it (a transit point). None if nothing is left to
+    photograph."""
     spacing = _spacing(previous)
 
     def photographed(part: int, side: int, span: float) -> bool:
         return any(p == part and s == side and abs(x - span) < 0.5 * spacing.get((p, s), 1.0)
                    for p, s, x in done)
 
-    plan = plan_path(surface, cfg.camera, options, start=here, done=photographed)
-    return plan if plan.photos else None
+    samples = solid_samples(surface)
+    start = here.translation
+    need = cfg.standoff + check_margin(samples) + 0.1
+    backward = -here.rotation_matrix()[:, 2]
+    retreat: list[Waypoint] = []
+    for _ in range(20):
+        dist = path_clearance(start[None], samples).least(ROTOR, legs=False)[0]
+        if dist >= need:
+            break
+        start = start + max(need - dist, 0.25) * backward
+        retreat = [Waypoint(start.copy(), float(np.arctan2(-backward[1], -backward[0])), 0.0)]
+    plan = plan_path(surface, cfg.camera, options, samples, start=start, done=photographed)
+    if not plan.photos:
+        return None
+    if retreat:  # fly here -> retreat point (the plan's start) -> the stations
+        plan.waypoints = [Waypoint(here.translation.copy(), 0.0, 0.0), *plan.waypoints]
+    return plan
 
 
 def _spacing(plan: Plan) -> dict[tuple[int, int], float]:
@@ -512,14 +569,17 @@ def _spacing(plan: Plan) -> dict[tuple[int, int], float]:
     return gaps
 
 
-def _initial_turbine(heatmaps: HeatmapStack, camera: PinholeCamera, world_T_cam: SE3,
-                     typed_in: TurbineParams, cfg: MissionConfig) -> tuple[TurbineParams, str]:
-    """The turbine the plan starts from: ``init`` on the orbit (near the typed-in base,
-    with its sizes as the type's), then a batch fit of the orbit; what ``init`` cannot
-    determine is the typed-in value."""
-    from turbinefit.flight import Flight
-    from turbinefit.solver.fit import fit
-
+def _initial_turbine(keyframes: list[Keyframe], camera: PinholeCamera,
+                     typed_in: TurbineParams, config: FitConfig) -> tuple[TurbineParams, str]:
+    """The turbine the plan starts from: ``init`` on the orbit's ``keyframes`` (near the
+    typed-in base, with its sizes as the type's), then a batch fit of the orbit
+    (``config``); what ``init`` cannot determine is the typed-in value."""
+    heatmaps = HeatmapStack(np.stack([k.heatmaps for k in keyframes]))
+    world_T_cam = SE3(np.stack([k.recorded.wxyz_xyz for k in keyframes]))
+    odometry = None
+    if keyframes[0].odometry is not None:
+        odometry = SE3(np.stack([k.odometry.wxyz_xyz for k in keyframes  # type: ignore[union-attr]
+                                 ]))
     prior = TurbinePrior(near_xy=(typed_in.base_x, typed_in.base_y),
                          hub_height=typed_in.tower_height, blade_length=typed_in.blade_length,
                          nacelle_length=typed_in.nacelle_length)
@@ -529,9 +589,10 @@ def _initial_turbine(heatmaps: HeatmapStack, camera: PinholeCamera, world_T_cam:
     except NotDetermined as e:
         start = typed_in
         note = f"the typed-in turbine (init: {e})"
-    flight = Flight(camera=camera, timestamps=np.arange(len(heatmaps), dtype=np.float64),
-                    world_T_cam=world_T_cam, heatmaps=heatmaps, turbine=start)
-    result = fit(flight, cfg.tracker.fit)
+    flight = Flight(camera=camera, timestamps=np.array([k.timestamp for k in keyframes]),
+                    world_T_cam=world_T_cam, heatmaps=heatmaps, turbine=start,
+                    odometry=odometry)
+    result = fit(flight, config)
     if result.verdict == "failed":
         return start, note + "; the orbit's fit failed, not used"
     return result.turbine, note + ", refined by a fit of the orbit"

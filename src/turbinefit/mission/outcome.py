@@ -105,9 +105,10 @@ def final_fit(mission: Mission) -> FitResult:
                     world_T_cam=_poses(kfs, "recorded"),
                     heatmaps=HeatmapStack(np.stack([k.heatmaps for k in kfs])),
                     turbine=mission.tracker.turbine,
+                    odometry=_poses(kfs, "odometry") if kfs[0].odometry is not None else None,
                     gt_world_T_cam=_poses(kfs, "true"), gt_turbine=mission.truth,
                     position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None)
-    return fit(flight, mission.config.tracker.fit)
+    return fit(flight, mission.config.fit_config())
 
 
 def mission_outcome(mission: Mission) -> MissionOutcome:

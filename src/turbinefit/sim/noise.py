@@ -21,7 +21,8 @@ different sigma per parameter to the turbine; it gives no values. Ours:
   rotation ``Exp(n_r) q``, ``n_r ~ N(0, s_r^2 I3)`` (defaults :data:`VIO_SIGMA_T_M`,
   :data:`VIO_SIGMA_T_PER_M`, :data:`VIO_SIGMA_R_DEG`), then chained from the first
   ground-truth pose: the odometry's own world frame drifts away (a rotation error of
-  one step turns every later step).
+  one step turns every later step). :class:`OdometrySensor` measures the same steps one
+  at a time, as they are flown (a mission in the loop).
 """
 
 from __future__ import annotations
@@ -140,6 +141,37 @@ def body_odometry(
         acc = SE3(np.concatenate([w if w[0] >= 0 else -w, acc.translation]))
         out[k + 1] = acc.wxyz_xyz
     return SE3(out)
+
+
+class OdometrySensor:
+    """Body-frame odometry measured step by step (:func:`body_odometry`'s noise model): each
+    :meth:`measure` of a true pose returns the odometry's pose, chained from the first
+    true pose measured."""
+
+    def __init__(self, rng: np.random.Generator, scale: float = 1.0) -> None:
+        if not (math.isfinite(scale) and scale >= 0):
+            raise ValueError(f"odometry noise scale must be a non-negative number, got {scale}")
+        self.rng = rng
+        self.scale = scale
+        self._true: SE3 | None = None
+        self._odo: SE3 | None = None
+
+    def measure(self, true: SE3) -> SE3:
+        """The odometry's pose at the true pose ``true`` (one pose)."""
+        if self._true is None or self._odo is None:
+            self._true, self._odo = true, SE3(true.wxyz_xyz.copy())
+            return self._odo
+        rel = self._true.inverse() @ true
+        step = float(np.linalg.norm(rel.translation))
+        sig_t = self.scale * math.hypot(VIO_SIGMA_T_M, VIO_SIGMA_T_PER_M * step)
+        t = rel.translation + self.rng.normal(0.0, 1.0, 3) * sig_t
+        q = quat_multiply(quat_exp(self.rng.normal(
+            0.0, self.scale * math.radians(VIO_SIGMA_R_DEG), 3)), rel.wxyz)
+        acc = self._odo @ SE3(np.concatenate([q / np.linalg.norm(q), t]))
+        w = acc.wxyz / np.linalg.norm(acc.wxyz)
+        self._true = true
+        self._odo = SE3(np.concatenate([w if w[0] >= 0 else -w, acc.translation]))
+        return self._odo
 
 
 def perturb_turbine(
