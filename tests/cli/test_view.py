@@ -98,6 +98,13 @@ def test_a_mission_folder_is_found_by_its_sub_folders(
     assert data["plan"]["length"] == pytest.approx(plan["length_m"], abs=0.01)
     assert data["coverage"]["source"] == str(mission / "coverage")
     assert data["title"] == "turbinefit: mission"
+    # the page may sit in the mission folder, beside (not inside) what it reads
+    assert main(["view", str(mission), "--out", str(mission / "view.html"), "--photos", "0",
+                 "--quiet"]) == 0
+    (mission / "view.html").unlink()
+    assert_one_line_error(*run(capsys, "view", str(mission), "--out",
+                               str(mission / "plan" / "view.html")),
+                          r"plan/view\.html", r"nest inside the input")
     # the same page from the fit with the folders named
     out2 = tmp_path / "named.html"
     assert main(["view", str(fit_dir), "--plan", str(mission / "plan"), "--coverage",
@@ -201,13 +208,19 @@ def _make(kind: str, fit_dir: Path, photo_flight_dir: Path, mission: Path, w: Pa
         (plan / "waypoints.csv").write_text("\n".join(lines) + "\n")
         return (["view", str(fit_dir), "--plan", str(plan), "--out", out],
                 (r"waypoints\.csv:3", r"\[?x\]?", r"must be a number"))
+    if kind == "photo-shape":
+        flight = Path(shutil.copytree(photo_flight_dir, w / "fl"))
+        Image.new("RGB", (100, 100)).save(flight / "images" / "2.000000.png")
+        return (["view", str(fit_dir), "--flight", str(flight), "--out", out],
+                (r"fl/images/2\.000000\.png", r"photo is 100x100, not the shape of the "
+                 r"camera's 160x120"))
     raise AssertionError(kind)
 
 
 @pytest.mark.parametrize("kind", [
     "empty", "missing", "flight", "plan", "coverage", "mission-without-fit", "out-is-a-folder",
     "out-inside-the-fit", "out-inside-the-flight", "flight-mismatch", "bad-sides",
-    "bad-waypoints"])
+    "bad-waypoints", "photo-shape"])
 def test_bad_input_is_one_line_and_nothing_is_written(
         kind: str, fit_dir: Path, photo_flight_dir: Path, mission: Path, tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:

@@ -13,7 +13,8 @@ flight's camera (as ``turbinefit coverage`` does) unless ``coverage=False``.
 **What it writes.** One HTML file, atomically (:func:`~turbinefit.io.atomic.write_bytes_atomic`),
 refused before any work if it is an input, inside one, a folder, or an existing file
 without ``overwrite`` (and then only a page this job wrote is replaced):
-:func:`~turbinefit.jobs.outputs.check_output_file`.
+:func:`~turbinefit.jobs.outputs.check_output_file`. The inputs are the fit, plan, coverage
+and flight folders: a page may be written into a mission folder, beside them.
 
 The readers of the ``plan`` and ``coverage`` outputs (``waypoints.csv``, ``sides.csv``)
 are here, the one job that reads them back; every number in them passes a
@@ -258,8 +259,8 @@ def read_thumbnails(flight_dir: Path, timestamps: np.ndarray, keyframes: list[in
     """
     from turbinefit.io.images import (
         IMAGE_SUFFIXES,
+        check_image,
         encode_jpeg,
-        image_size,
         read_image,
         resize_image,
     )
@@ -277,8 +278,9 @@ def read_thumbnails(flight_dir: Path, timestamps: np.ndarray, keyframes: list[in
 
     def thumbnail(job: tuple[int, Path]) -> Photo:
         k, path = job
-        w, h = image_size(path)
-        if abs(w * camera.height - h * camera.width) > 0.01 * w * camera.height:
+        w, h = check_image(path)  # the header as stored (an EXIF turn may swap the sides)
+        aspect = camera.width / camera.height
+        if min(abs(a / b / aspect - 1.0) for a, b in ((w, h), (h, w))) > 0.01:
             raise InputError(f"photo is {w}x{h}, not the shape of the camera's "
                              f"{camera.width}x{camera.height}", path)
         img = read_image(path, reduce_to=(tw, th))
@@ -391,7 +393,8 @@ def view_page(source: str | os.PathLike[str], out: str | os.PathLike[str], *,
         max_gsd_mm = GSD_MM.check(max_gsd_mm, field="--gsd")
     out = Path(out)
     inputs = find_inputs(source, plan_dir, coverage_dir)
-    given = [Path(source), inputs.fit_dir] + [Path(p) for p in (
+    # a mission folder itself is no input: the page may sit beside its sub-folders
+    given = [inputs.fit_dir] + [Path(p) for p in (
         flight_dir, inputs.plan_dir, inputs.coverage_dir) if p is not None]
 
     def ours(path: Path) -> bool:

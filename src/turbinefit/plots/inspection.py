@@ -1,5 +1,7 @@
 """Figures of an inspection: the coverage of each blade's and the tower's sides
-(``coverage``) and a planned path round the turbine (``plan``)."""
+(``coverage``) and a planned path round the turbine (``plan``); the coverage's colour scale
+(:func:`gsd_range`, :func:`gsd_colours`), which the interactive page
+(:mod:`turbinefit.view.scene`) paints on the turbine."""
 
 from __future__ import annotations
 

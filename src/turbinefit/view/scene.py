@@ -53,6 +53,9 @@ OVERLAY_SAMPLES = 16
 #: Frustum depth [m] as a share of the turbine's size (tip height), and its bounds.
 FRUSTUM_SHARE = 0.03
 FRUSTUM_M = (0.5, 8.0)
+#: Rings along the tower and the blades at most this far apart [m] when they carry coverage
+#: colours (the coverage's bins are 0.5 m by default; a colour is drawn per vertex).
+COLOUR_RING_STEP_M = 1.0
 #: Vertical field of view of the first viewpoint [deg].
 VIEW_FOV_DEG = 40.0
 #: The first viewpoint: its azimuth from the rotor's axis (upwind) and its elevation [deg].
@@ -258,14 +261,15 @@ def _hex(rgb: NDArray[np.uint8]) -> str:
 
 def turbine_parts(turbine: TurbineParams, geometry: TurbineGeometry, origin: FloatArray,
                   coverage: CoverageView | None) -> list[dict[str, Any]]:
-    """The fitted turbine's solid (the mesh of ``turbine.glb``), part by part: vertices
-    relative to ``origin``, smooth normals, triangles, its plain sRGB colour per vertex
-    and, with ``coverage``, its coverage colour per vertex."""
+    """The fitted turbine's solid (the mesh of ``turbine.glb``; with ``coverage``, rings
+    :data:`COLOUR_RING_STEP_M` apart along the tower and the blades), part by part:
+    vertices relative to ``origin``, smooth normals, triangles, its plain sRGB colour per
+    vertex and, with ``coverage``, its coverage colour per vertex."""
     solid = TurbineSolid(turbine.to_vector(), geometry)
     lo_hi = None if coverage is None else gsd_range([g.best_gsd for g in coverage.grids],
                                                     coverage.max_gsd_mm)
     parts = []
-    for part in solid_mesh(solid):
+    for part in solid_mesh(solid, ring_step=None if coverage is None else COLOUR_RING_STEP_M):
         v, n, f = smooth_normals(part, math.radians(SHARP_EDGE_DEG))
         plain = np.tile(_srgb_bytes(PART_COLOURS[part.name.split("_")[0]]), (len(v), 1))
         item: dict[str, Any] = {"name": part.name, "position": packed(v - origin),

@@ -128,10 +128,22 @@
     return new THREE.Line(g, lineMaterial(colour, opacity));
   }
 
+  const dotTexture = (() => {  // round dots rather than squares
+    const c = document.createElement('canvas');
+    c.width = c.height = 64;
+    const g = c.getContext('2d');
+    g.fillStyle = '#fff';
+    g.beginPath();
+    g.arc(32, 32, 30, 0, 2 * Math.PI);
+    g.fill();
+    return new THREE.CanvasTexture(c);
+  })();
+
   function points(positions, colour, size) {
     const g = new THREE.BufferGeometry();
     g.setAttribute('position', new THREE.BufferAttribute(positions, 3));
-    return new THREE.Points(g, new THREE.PointsMaterial({ color: colour, size: size, sizeAttenuation: false }));
+    return new THREE.Points(g, new THREE.PointsMaterial({
+      color: colour, size: size, sizeAttenuation: false, map: dotTexture, alphaTest: 0.5 }));
   }
 
   const FRUSTUM_EDGES = [0, 1, 0, 2, 0, 3, 0, 4, 1, 2, 2, 3, 3, 4, 4, 1];
@@ -178,8 +190,9 @@
   for (const c of data.cameras) {
     const pos = decode(c.positions);
     const fr = decode(c.frusta);
-    const main = c.name === 'optimised';  // drawn last, on top; the others lighter
-    const objects = [polyline(pos, c.colour, main ? 0.9 : 0.6), points(pos, c.colour, 3)];
+    const main = c.name === 'optimised';  // drawn last, on top, with a dot per keyframe
+    const objects = [polyline(pos, c.colour, main ? 0.9 : 0.6)];
+    if (main) objects.push(points(pos, c.colour, 2.5));
     if (fr.length) objects.push(segments(fr, frustumPairs(fr.length / 15), c.colour, main ? 0.95 : 0.45));
     for (const o of objects) o.renderOrder = main ? 2 : 1;
     const layer = addLayer('cameras_' + c.name, c.label, c.colour, objects, true);
@@ -221,9 +234,11 @@
     Math.round(view.target[1] / gridStep) * gridStep, 0);
   addLayer('grid', 'ground grid (' + gridStep + ' m squares)', '#aab4be', [grid], true);
 
-  // selection marker
-  const marker = new THREE.Mesh(new THREE.SphereGeometry(Math.max(0.15, 0.18 * data.frustum_depth), 16, 12),
-    new THREE.MeshBasicMaterial({ color: 0xffa000 }));
+  // selection marker: a dot of constant size, seen through whatever hides it
+  const SELECTED = 0xffa000;
+  const marker = points(new Float32Array(3), SELECTED, 13);
+  marker.material.depthTest = false;
+  marker.renderOrder = 10;
   marker.visible = false;
   scene.add(marker);
   let highlight = null;
@@ -391,6 +406,8 @@
     if (highlight) { scene.remove(highlight); highlight.geometry.dispose(); highlight = null; }
     if (frusta && index !== null) {
       highlight = segments(frusta.slice(15 * index, 15 * index + 15), frustumPairs(1), colour, 1);
+      highlight.material.depthTest = false;
+      highlight.renderOrder = 10;
       scene.add(highlight);
     }
   }
@@ -451,9 +468,11 @@
     if (!(k >= 0 && k < kf.count)) return false;
     set = set && sets[set] ? set : Object.keys(sets)[0];
     selected = k;
-    marker.position.copy(position(set, k));
+    marker.geometry.getAttribute('position').array.set(position(set, k).toArray());
+    marker.geometry.getAttribute('position').needsUpdate = true;
+    marker.geometry.computeBoundingSphere();
     marker.visible = true;
-    setHighlight(shownIndex.has(k) ? sets[set].frusta : null, shownIndex.has(k) ? shownIndex.get(k) : null, 0xffa000);
+    setHighlight(shownIndex.has(k) ? sets[set].frusta : null, shownIndex.has(k) ? shownIndex.get(k) : null, SELECTED);
     const body = [];
     const i = photoIndex.get(k);
     if (i !== undefined) {
@@ -469,9 +488,14 @@
       body.push(el('div', { class: 'keys' }, keys));
     } else {
       const near = nearestPhoto(k);
-      body.push(el('div', { class: 'frame' }, [el('div', { class: 'nophoto', text: photos.length
-        ? 'No photo embedded for this keyframe' + (near !== null ? ' (nearest with one: keyframe ' + near + ', \u2190/\u2192)' : '') + '.'
-        : 'No photos are embedded in this page.' })]));
+      const note = el('div', { class: 'nophoto', text: photos.length
+        ? 'No photo embedded for this keyframe. ' : 'No photos are embedded in this page.' });
+      if (near !== null) {
+        const go = el('button', { text: 'show keyframe ' + near + ', the nearest with one' });
+        go.addEventListener('click', () => select(near, set));
+        note.append(go);
+      }
+      body.push(el('div', { class: 'frame' }, [note]));
     }
     const rows = [['time', fmt(kf.timestamps[k], 3) + ' s']];
     const opt = sets.optimised ? position('optimised', k) : null;
@@ -491,9 +515,11 @@
   function selectPlan(m) {
     selected = null;
     const fr = planFrusta;
-    marker.position.set(fr[15 * m], fr[15 * m + 1], fr[15 * m + 2]);
+    marker.geometry.getAttribute('position').array.set(fr.subarray(15 * m, 15 * m + 3));
+    marker.geometry.getAttribute('position').needsUpdate = true;
+    marker.geometry.computeBoundingSphere();
     marker.visible = true;
-    setHighlight(fr, m, 0xffa000);
+    setHighlight(fr, m, SELECTED);
     showPanel('Planned photo ' + (m + 1) + ' of ' + data.plan.labels.length,
       [el('p', { text: data.plan.labels[m] }), el('p', { class: 'small', text: 'from ' + data.plan.source })], false);
     requestRender();
