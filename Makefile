@@ -23,7 +23,8 @@ $(STAMP): pyproject.toml setup.py src/turbinefit/_kernels.c
 
 ## demo: render a 200-keyframe flight with photos, detect heat-maps with the shipped CNN,
 ##       fit it, replay it through the in-flight tracker, say what each photo shows of each
-##       blade and plan the next flight at 10 m; results and plots in demo/
+##       blade, plan the next flight at 10 m and write the interactive page of it all
+##       (demo/view.html); results and plots in demo/
 demo: $(STAMP)
 	$(BIN)/turbinefit simulate $(DEMO)/flight --keyframes 200 --seed 1 --images --overwrite
 	$(BIN)/turbinefit detect $(DEMO)/flight/images/40.000000.png $(DEMO)/flight/images/120.000000.png \
@@ -32,7 +33,8 @@ demo: $(STAMP)
 	$(BIN)/turbinefit track $(DEMO)/flight --from-images --out $(DEMO)/track --overwrite
 	$(BIN)/turbinefit coverage $(DEMO)/fit --out $(DEMO)/coverage --overwrite
 	$(BIN)/turbinefit plan $(DEMO)/fit --standoff 10 --out $(DEMO)/plan --overwrite
-	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit; in-flight tracking: $(DEMO)/track; coverage: $(DEMO)/coverage; next flight: $(DEMO)/plan"
+	$(BIN)/turbinefit view $(DEMO) --out $(DEMO)/view.html --overwrite
+	@echo "photos: $(DEMO)/flight/images; detections: $(DEMO)/detect; fit results and plots: $(DEMO)/fit; in-flight tracking: $(DEMO)/track; coverage: $(DEMO)/coverage; next flight: $(DEMO)/plan; all of it in 3-D: $(DEMO)/view.html"
 
 ## test: run the test suite
 test: $(STAMP)

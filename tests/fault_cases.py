@@ -558,7 +558,63 @@ def _cases() -> list[Case]:
     add("plan-origin-on-georef", cmd(*plan, *origin), write("georef.yaml",
         "latitude: 51.4\nlongitude: -2.5\naltitude: 40\nframe: enu\n"), r"--origin: the "
         r"flight is georeferenced")
+    # -- view: a folder that is neither a fit nor a mission; bad numbers; bad plan and
+    # coverage files (the fit: the flight's own poses and turbine, in flight/fit)
+    add("view-flight-folder", cmd("view", "{w}/flight", "--out", "{w}/out"), None,
+        r"flight: is neither a fit output", r"it is a flight folder")
+    add("view-empty-folder", cmd("view", "{w}/flight/empty", "--out", "{w}/out"),
+        lambda f: (f / "empty").mkdir(), r"empty: is neither a fit output \(keyframes")
+    add("view-missing", cmd("view", "{w}/flight/none", "--out", "{w}/out"), None,
+        r"flight/none: not found")
+    vfit = ("view", "{w}/flight/fit", "--flight", "{w}/flight", "--out", "{w}/out")
+    add("view-sides-bad-gsd", cmd(*vfit, "--coverage", "{w}/flight/cov"),
+        both(_view_fit, _view_coverage("blade_A,leading_edge,1.00,1.50,-1,")),
+        r"cov/sides\.csv:2 \[best_gsd_mm_px\]", r"out of range")
+    add("view-sides-bad-side", cmd(*vfit, "--coverage", "{w}/flight/cov"),
+        both(_view_fit, _view_coverage("blade_A,front,1.00,1.50,3.2,")),
+        r"cov/sides\.csv:2 \[side\]", r"unknown side 'front' of blade_A")
+    add("view-waypoints-nan", cmd(*vfit, "--plan", "{w}/flight/plan"),
+        both(_view_fit, _view_plan("0,nan,1,40,0,0,0,,,")), r"plan/waypoints\.csv:2 \[x\]",
+        r"must be a number")
+    add("view-plan-photos-mismatch", cmd(*vfit, "--plan", "{w}/flight/plan"),
+        both(_view_fit, _view_plan("0,1,1,40,0,0,1,blade_A,leading_edge,20.00")),
+        r"plan/keyframes\.txt", r"6 photo poses, but waypoints\.csv has 1 photos")
+    add("view-flight-mismatch", cmd(*vfit), both(_view_fit, cut("fit/keyframes.txt", "3.0")),
+        r"flight/keyframes\.txt", r"not the fit's 3")
+    for opt, value in (("--thumbnail", "10"), ("--thumbnail", "64.5"), ("--photos", "-1"),
+                       ("--gsd", "nan")):
+        add(f"view{opt}-{value}", cmd(*vfit, opt, value), _view_fit, opt, usage=True)
     return c
+
+
+def _view_fit(flight: Path) -> None:
+    """A fit folder in ``flight/fit``: the flight's poses and turbine."""
+    (flight / "fit").mkdir()
+    for name in ("keyframes.txt", "turbine.yaml"):
+        shutil.copy(flight / name, flight / "fit" / name)
+
+
+def _view_coverage(row: str) -> Mutation:
+    """A coverage folder ``flight/cov`` whose ``sides.csv`` holds ``row``."""
+    def m(flight: Path) -> None:
+        (flight / "cov").mkdir()
+        (flight / "cov" / "summary.json").write_text(json.dumps({"max_gsd_mm_px": 2.0}))
+        (flight / "cov" / "sides.csv").write_text(
+            "part,side,span_from_m,span_to_m,best_gsd_mm_px,timestamp\n" + row + "\n")
+    return m
+
+
+def _view_plan(row: str) -> Mutation:
+    """A plan folder ``flight/plan`` whose ``waypoints.csv`` holds a good first row then
+    ``row``, with the flight's poses as its photos'."""
+    def m(flight: Path) -> None:
+        (flight / "plan").mkdir()
+        for name in ("keyframes.txt", "turbine.yaml"):
+            shutil.copy(flight / name, flight / "plan" / name)
+        (flight / "plan" / "waypoints.csv").write_text(
+            "index,x,y,z,yaw_deg,gimbal_pitch_deg,photo,part,side,span_m\n" + row
+            + "\n1,2,2,40,0,0,0,,,\n")
+    return m
 
 
 CASES: list[Case] = _cases()

@@ -65,6 +65,16 @@ def test_inspection_imports_only_the_core(path: Path) -> None:
     assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
 
 
+#: What the view's page builder must not import: it sits beside plots, below the jobs.
+ABOVE_VIEW = ("cli", "jobs", "experiments", "train", "detect", "sim")
+
+
+@pytest.mark.parametrize("path", _modules(("view",)), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_the_view_imports_nothing_above_it(path: Path) -> None:
+    bad = sorted(m for m in _imported(path) if m.split(".")[1] in ABOVE_VIEW)
+    assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
+
+
 def test_the_check_sees_a_forbidden_import(tmp_path: Path) -> None:
     p = tmp_path / "m.py"
     p.write_text("def f():\n    from turbinefit.io.tum import write_tum\n")
@@ -104,6 +114,9 @@ def test_top_level_help_loads_no_command() -> None:
                               "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
     (["plan", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
                           "turbinefit.jobs", "onnxruntime", "torch", "matplotlib")),
+    (["view", "--help"], ("turbinefit.solver", "turbinefit.detect", "turbinefit.sim",
+                          "turbinefit.jobs", "turbinefit.view", "onnxruntime", "torch",
+                          "matplotlib")),
 ])
 def test_a_command_loads_only_what_it_uses(argv: list[str], must_not: tuple[str, ...]) -> None:
     loaded = _loaded(argv)

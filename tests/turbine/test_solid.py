@@ -114,3 +114,28 @@ def test_blade_profile_widest_near_the_root() -> None:
 
 def test_typical_nacelle_is_the_middle_of_the_renderers_ranges() -> None:
     assert TYPICAL_NACELLE == pytest.approx((2.3, 0.06, 0.975))
+
+
+def test_rings_a_given_step_apart_keep_the_tower_and_refine_the_blades() -> None:
+    solid = TurbineSolid(THETA.to_vector())
+    coarse = {p.name: p for p in solid_mesh(solid)}
+    fine = {p.name: p for p in solid_mesh(solid, ring_step=1.0)}
+    for name, p in fine.items():
+        assert _closed_and_oriented(p.faces) and _signed_volume(p.vertices, p.faces) > 0, name
+        np.testing.assert_allclose(p.vertices.min(0), coarse[name].vertices.min(0), atol=1e-6)
+        np.testing.assert_allclose(p.vertices.max(0), coarse[name].vertices.max(0), atol=1e-6)
+    tower = fine["tower"].vertices
+    z = np.unique(np.round(tower[:, 2], 9))
+    assert np.diff(z).max() <= 1.0 + 1e-9  # rings at most 1 m apart
+    assert _signed_volume(tower, fine["tower"].faces) == pytest.approx(
+        _signed_volume(coarse["tower"].vertices, coarse["tower"].faces), rel=1e-9)
+    # the blades' rings: along the blade at most 1 m apart (denser towards the tip)
+    hub = solid.hub
+    for i in range(3):
+        v = fine[f"blade_{i + 1}"].vertices
+        e = (solid.tips[i] - hub) / np.linalg.norm(solid.tips[i] - hub)
+        spans = np.unique(np.round((v - hub) @ e, 6))
+        assert np.diff(spans).max() <= 1.0 + 1e-6
+        assert _signed_volume(v, fine[f"blade_{i + 1}"].faces) == pytest.approx(
+            _signed_volume(coarse[f"blade_{i + 1}"].vertices, coarse[f"blade_{i + 1}"].faces),
+            rel=0.02)

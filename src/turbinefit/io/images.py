@@ -196,6 +196,14 @@ def encode_png(image: U8Image, compress_level: int = 3) -> bytes:
     return buf.getvalue()
 
 
+def encode_jpeg(image: U8Image, quality: int = 85) -> bytes:
+    """JPEG bytes of an RGB uint8 (H, W, 3) image (``quality`` 1-95, Pillow's scale)."""
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), "RGB").save(
+        buf, format="JPEG", quality=int(quality))
+    return buf.getvalue()
+
+
 def write_png(path: StrPath, image: U8Image, fsync: bool = True) -> Path:
     """Write an RGB uint8 (H, W, 3) image as PNG, atomically."""
     return write_bytes_atomic(path, encode_png(image), fsync=fsync)

@@ -21,7 +21,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,8 +83,9 @@ class OutputKind:
             yield tmp
 
 
-def check_not_input(out: Path, inputs: Iterable[Path]) -> None:
-    """Refuse an output path that is, contains or lies inside one of ``inputs``."""
+def check_not_input(out: Path, inputs: Iterable[Path], what: str = "output folder") -> None:
+    """Refuse an output path (``what``, in the message) that is, contains or lies inside
+    one of ``inputs``."""
     try:
         resolved = out.resolve()
     except (OSError, RuntimeError) as exc:  # RuntimeError: a symbolic-link loop
@@ -95,8 +96,30 @@ def check_not_input(out: Path, inputs: Iterable[Path]) -> None:
         except (OSError, RuntimeError) as exc:
             raise InputError(f"cannot resolve the input path: {exc}", src) from None
         if resolved == s or s.is_relative_to(resolved) or resolved.is_relative_to(s):
-            raise InputError(f"output folder would overwrite or nest inside the input {src}",
-                             out)
+            raise InputError(f"{what} would overwrite or nest inside the input {src}", out)
+
+
+def check_output_file(path: Path, inputs: Iterable[Path], overwrite: bool, what: str,
+                      ours: Callable[[Path], bool] | None = None) -> None:
+    """Refuse ``path`` as a job's one output file before any work, and reserve it
+    (:func:`~turbinefit.io.atomic.reserve_output`): it must not be or lie inside an input,
+    nor be a symbolic link or a folder; an existing file is replaced only with
+    ``overwrite`` and, given ``ours``, only if ``ours(path)`` says this command wrote it
+    (a guard against ``--overwrite`` on a wrong path). ``what`` names the file in messages.
+    """
+    check_not_input(path, inputs, f"the {what}")
+    if path.is_symlink():
+        raise InputError("output path is a symbolic link; refusing to replace it", path)
+    if path.is_dir():
+        raise InputError(f"is a folder; the {what} is a file", path)
+    if path.exists():
+        if not overwrite:
+            raise InputError(f"exists ({OVERWRITE_HINT} to replace it)", path)
+        if not path.is_file():
+            raise InputError("output path exists and is not a regular file", path)
+        if ours is not None and not ours(path):
+            raise InputError(f"is not a {what} turbinefit wrote; refusing to replace it", path)
+    reserve_output(path)
 
 
 def recorded_path(path: str | Path, out_dir: str | Path) -> str:

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from turbinefit.geometry.camera import MIN_DEPTH, PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.turbine.model import (
     LINES,
@@ -91,6 +92,24 @@ def line_polyline(points: FloatArray, n: int = LINE_SAMPLES) -> FloatArray:
         parts.append(points[a] * (1.0 - s) + points[b] * s)
         parts.append(np.full((1, 3), np.nan))
     return np.concatenate(parts, axis=0)
+
+
+def project_skeleton(camera: PinholeCamera, world_T_cam: SE3, points: FloatArray,
+                     n: int = LINE_SAMPLES) -> tuple[FloatArray, FloatArray]:
+    """Pixels of the model lines of ``points`` (6, 3) sampled ``n`` times each, as one
+    polyline (5 (n + 1), 2) with NaN breaks, and of the six model points (6, 2), seen by
+    ``camera`` at ``world_T_cam``; NaN where not drawable (behind the camera, beyond the
+    trusted distortion range, further than :data:`MAX_PIXEL`). Pixels outside the image
+    are kept: the drawing clips them."""
+    cam_T_world = world_T_cam.inverse()
+    out = []
+    for world_p in (line_polyline(points, n), points):
+        finite = np.all(np.isfinite(world_p), axis=1)
+        cam_p = cam_T_world @ np.where(finite[:, None], world_p, 0.0)
+        uv, front, _ = camera.project_unbounded(cam_p)
+        ok = finite & front & (cam_p[:, 2] > MIN_DEPTH) & np.all(np.abs(uv) < MAX_PIXEL, axis=1)
+        out.append(np.where(ok[:, None], uv, np.nan))
+    return out[0], out[1]
 
 
 def choose_keyframes(n_keyframes: int, count: int = 6) -> list[int]:

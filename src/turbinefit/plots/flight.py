@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.errors import InputError
-from turbinefit.geometry.camera import MIN_DEPTH, PinholeCamera
+from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, pose_errors
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.turbine.model import (
@@ -44,7 +44,6 @@ from turbinefit.plots.common import (
     CAUSAL_COLOUR,
     GT_COLOUR,
     INITIAL_COLOUR,
-    MAX_PIXEL,
     OPTIMISED_COLOUR,
     REPROJ_INITIAL_COLOUR,
     REPROJ_OPTIMISED_COLOUR,
@@ -55,6 +54,7 @@ from turbinefit.plots.common import (
     line_polyline,
     mean_label,
     new_figure,
+    project_skeleton,
     save_png,
     skeleton_points,
 )
@@ -246,23 +246,6 @@ def _heatmap_composite(maps: NDArray[np.floating]) -> FloatArray:
     return np.clip(rgb, 0.0, 1.0)
 
 
-def _projectskeleton_points(
-    camera: PinholeCamera, world_T_cam: SE3, points: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Pixels of the densely sampled model lines (M, 2; NaN where not drawable: behind the
-    camera, beyond the trusted distortion range) and of the six model points (6, 2; NaN
-    likewise). Out-of-image pixels are kept: the axes clip them at the border."""
-    cam_T_world = world_T_cam.inverse()
-    out = []
-    for world_p in (line_polyline(points), points):
-        finite = np.all(np.isfinite(world_p), axis=1)
-        cam_p = cam_T_world @ np.where(finite[:, None], world_p, 0.0)
-        uv, front, _ = camera.project_unbounded(cam_p)
-        ok = finite & front & (cam_p[:, 2] > MIN_DEPTH) & np.all(np.abs(uv) < MAX_PIXEL, axis=1)
-        out.append(np.where(ok[:, None], uv, np.nan))
-    return out[0], out[1]
-
-
 def _grid(n: int) -> tuple[int, int]:
     """(rows, cols) of a panel grid for ``n`` panels."""
     if n <= 1:
@@ -361,7 +344,7 @@ def plot_reprojections(
             rgba = np.dstack([_heatmap_composite(heatmaps[k]), PHOTO_HEATMAP_ALPHA * strength])
             ax.imshow(rgba, extent=extent, interpolation="bilinear")
         for _, colour, poses, sk in skeletons:
-            lines_uv, points_uv = _projectskeleton_points(camera, poses[k], sk)
+            lines_uv, points_uv = project_skeleton(camera, poses[k], sk)
             ax.plot(lines_uv[:, 0], lines_uv[:, 1], color=colour, lw=1.3, alpha=0.95)
             ax.plot(points_uv[:, 0], points_uv[:, 1], "o", color=colour, ms=4.5, mec="black",
                     mew=0.5)

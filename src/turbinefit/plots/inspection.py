@@ -1,13 +1,18 @@
 """Figures of an inspection: the coverage of each blade's and the tower's sides
-(``coverage``) and a planned path round the turbine (``plan``)."""
+(``coverage``) and a planned path round the turbine (``plan``); the coverage's colour scale
+(:func:`gsd_range`, :func:`gsd_colours`), which the interactive page
+(:mod:`turbinefit.view.scene`) paints on the turbine."""
 
 from __future__ import annotations
 
+import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.plots.common import new_figure, save_png
 
@@ -19,6 +24,34 @@ if TYPE_CHECKING:
 
 #: Colour of span never seen.
 GAP_COLOUR = "#d9d9d9"
+#: The colour map of the best ground sampling distance (log scale; fine is yellow).
+GSD_COLOURMAP = "viridis_r"
+
+
+def gsd_range(best_gsd: Sequence[NDArray[np.float64]], max_gsd_mm: float) -> tuple[float, float]:
+    """The ends [mm/px] of the colour scale of best ground sampling distances ``best_gsd``
+    (arrays; inf: never seen) with the threshold ``max_gsd_mm`` inside it."""
+    finite = np.concatenate([np.asarray(g)[np.isfinite(g)].ravel() for g in best_gsd]
+                            + [np.ones(0)])
+    lo = max(min(float(finite.min()) if finite.size else 1.0, max_gsd_mm) * 0.9, 1e-3)
+    hi = max(float(finite.max()) if finite.size else 10.0, max_gsd_mm * 1.5, lo * 10)
+    return lo, hi
+
+
+def gsd_colours(gsd: ArrayLike, lo: float, hi: float) -> NDArray[np.uint8]:
+    """sRGB colours (..., 3) of ground sampling distances ``gsd`` [mm/px] on the scale
+    ``lo`` .. ``hi`` of :func:`plot_coverage` (:data:`GSD_COLOURMAP`, log scale; values
+    outside it take its ends); :data:`GAP_COLOUR` where not finite (never seen)."""
+    import matplotlib
+    from matplotlib.colors import to_rgb
+
+    g = np.asarray(gsd, dtype=np.float64)
+    finite = np.isfinite(g) & (g > 0)
+    t = np.zeros(g.shape)
+    t[finite] = np.clip(np.log(g[finite] / lo) / math.log(hi / lo), 0.0, 1.0)
+    rgb = np.asarray(matplotlib.colormaps[GSD_COLOURMAP](t))[..., :3]
+    rgb[~finite] = to_rgb(GAP_COLOUR)
+    return np.round(255.0 * rgb).astype(np.uint8)
 
 
 def coverage_note(coverage: Coverage, max_gsd_mm: float, focal_px: float | None) -> str | None:
@@ -54,15 +87,13 @@ def plot_coverage(path: str | os.PathLike[str], coverage: Coverage, max_gsd_mm: 
     from turbinefit.inspection.surface import PARTS
 
     grids = coverage.grids
-    finite = np.concatenate([g.best_gsd[np.isfinite(g.best_gsd)] for g in grids] + [np.ones(0)])
-    lo = max(min(float(finite.min()) if finite.size else 1.0, max_gsd_mm) * 0.9, 1e-3)
-    hi = max(float(finite.max()) if finite.size else 10.0, max_gsd_mm * 1.5, lo * 10)
+    lo, hi = gsd_range([g.best_gsd for g in grids], max_gsd_mm)
     note = coverage_note(coverage, max_gsd_mm, focal_px)
     height = 1.45 * len(grids) + 1.0 + (0.3 if note else 0.0)
     fig = new_figure(10.5, height)
     top, bottom = 1.0 - 0.75 / height, (0.55 if note else 0.3) / height
     row_h = (top - bottom) / len(grids)
-    cmap = matplotlib.colormaps["viridis_r"].with_extremes(bad=GAP_COLOUR)
+    cmap = matplotlib.colormaps[GSD_COLOURMAP].with_extremes(bad=GAP_COLOUR)
     norm = LogNorm(lo, hi)
     image = None
     axes = []

@@ -179,17 +179,23 @@ BLADE_RINGS = 28
 SPINNER_RINGS = 10
 
 
-def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0) -> list[SolidPart]:
+def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0,
+               ring_step: float | None = None) -> list[SolidPart]:
     """The parts of ``solid`` as closed triangle meshes (world metres): tower, nacelle,
     spinner, blade_1, blade_2, blade_3; blades at ``blade_pitch`` [rad] (0: the chord in
-    the rotor plane, as in operation) and twisted as :func:`blade_twist`."""
+    the rotor plane, as in operation) and twisted as :func:`blade_twist`. ``ring_step``
+    [m]: rings at most about that far apart along the tower and the blades (for colours
+    that vary along them; the tower's surface is the same, the blades' finer), None: the
+    tower's two ends and :data:`BLADE_RINGS` a blade."""
     parts = []
     top = np.array([solid.base[0], solid.base[1], solid.tower_top_z])
     ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    k = 2 if ring_step is None else max(2, math.ceil((top[2] - solid.base[2]) / ring_step) + 1)
+    s = np.linspace(0.0, 1.0, k)[:, None]
+    radii = solid.r0 + (solid.r1 - solid.r0) * s[:, 0]
     parts.append(SolidPart("tower", *_closed_tube(
-        np.stack([solid.base, top]), np.stack([ex, ex]), np.stack([ey, ey]),
-        np.array([solid.r0, solid.r1]), np.array([solid.r0, solid.r1]),
-        RING_VERTICES["tower"], solid.base, top)))
+        solid.base + s * (top - solid.base), np.tile(ex, (k, 1)), np.tile(ey, (k, 1)),
+        radii, radii, RING_VERTICES["tower"], solid.base, top)))
     parts.append(SolidPart("nacelle", *_box(solid.nac_centre, solid.nac_half,
                                             np.stack([solid.shaft, solid.side, solid.up]))))
     # spinner: rings of the ellipsoid between its poles on the shaft
@@ -201,7 +207,9 @@ def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0) -> list[SolidPart]
         cent, np.tile(solid.side, (k, 1)), np.tile(solid.up, (k, 1)), rad, rad,
         RING_VERTICES["spinner"], solid.spin_centre - solid.spin_len * solid.shaft,
         solid.spin_centre + solid.spin_len * solid.shaft)))
-    u = (1.0 - (1.0 - np.linspace(0.0, 1.0, BLADE_RINGS)) ** 1.3).astype(np.float32)
+    rings = BLADE_RINGS if ring_step is None else max(BLADE_RINGS,
+                                                       math.ceil(1.3 * solid.b / ring_step) + 1)
+    u = (1.0 - (1.0 - np.linspace(0.0, 1.0, rings)) ** 1.3).astype(np.float32)
     half_chord, half_thick = blade_profile(u, solid.b)
     beta = blade_twist(u, blade_pitch).astype(np.float64)[:, None]
     for i, tip in enumerate(solid.tips):
