@@ -36,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "track": "replay a flight keyframe by keyframe (in-flight tracking)",
     "coverage": "what each keyframe of a fit shows of each blade and the tower, at what mm/px",
     "plan": "waypoints of the next inspection flight round a fitted turbine",
+    "mission": "simulate an inspection mission in the loop (fly, track, replan, find defects)",
     "view": "one interactive HTML page of a fit: turbine, cameras, photos, plan, coverage",
     "experiment": "Monte Carlo studies of the paper (simulated flights)",
     "report": "rebuild an experiment's figures and report from its rows",

@@ -268,7 +268,8 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         raise PlanError(
             f"the camera (focal length {f:.0f} px) reaches {gsd:.2f} mm/px at a stand-off of "
             f"{d:g} m (flown at {dp:.2f} m), coarser than {opt.max_gsd_mm:g} mm/px: come "
-            f"within {opt.max_gsd_mm * f / 1000.0 - margin:.2f} m or use a longer lens",
+            f"within {opt.max_gsd_mm * f / 1000.0 - margin:.2f} m or use a longer lens (a "
+            f"focal length of at least {1000.0 * dp / opt.max_gsd_mm:.0f} px)",
             "max_gsd_mm")
     if not 0.0 <= opt.overlap < 0.9:
         raise PlanError(f"overlap must be in [0, 0.9), got {opt.overlap:g}", "overlap")

@@ -34,6 +34,10 @@ camera's full size. The heat-maps are the CNN's on the photo (``maps="photos"``,
 shipped model through onnxruntime, at its own resolution) or the simulator's ideal ones
 (``maps="ideal"``: a fast stand-in for tests and for separating the loop from the net).
 
+**Open loop** skips the approach: the first plan is made from the typed-in turbine, as
+inspections are planned today; the tracker still follows the photos (its estimates are
+reported), but nothing the drone does depends on it.
+
 **The approach.** ``orbit_photos`` photos on a circle round the estimated tower at the
 hub's height, far enough for the rotor to fill the frame's short side; the initial turbine
 is estimated from them (:func:`~turbinefit.solver.init.initial_turbine`, near the typed-in
@@ -70,7 +74,7 @@ from turbinefit.inspection.plan import (
     check_margin,
     plan_path,
 )
-from turbinefit.inspection.surface import TurbineSurface
+from turbinefit.inspection.surface import SurfaceShape, TurbineSurface
 from turbinefit.sim.defects import draw_defects
 from turbinefit.sim.gnss import GnssReceiver, gnss_model
 from turbinefit.sim.noise import OdometrySensor
@@ -84,6 +88,7 @@ from turbinefit.solver.fit import fit
 from turbinefit.solver.init import NotDetermined, TurbinePrior, initial_turbine
 from turbinefit.solver.tracker import Tracker, TrackerConfig, TrackEstimate
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineParams, model_points
+from turbinefit.turbine.solid import ROOT_TWIST
 
 FloatArray = NDArray[np.float64]
 
@@ -147,6 +152,7 @@ class MissionConfig:
             ``gnss``: the recorded GNSS poses give both.
         replan_m: replan when the turbine estimate's model points moved this far [m].
         replan_every: and at most once every this many photos.
+        max_photos: end the mission after this many inspection photos (a short mission).
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
     """
@@ -167,6 +173,7 @@ class MissionConfig:
     odometry: Literal["vio", "gnss"] = "vio"
     replan_m: float = 0.5
     replan_every: int = 3
+    max_photos: int = 100_000
     speed_m_s: float = 4.0
     photo_s: float = 2.0
     tracker: TrackerConfig = field(default_factory=lambda: TrackerConfig(
@@ -253,12 +260,15 @@ class Mission:
         path_true, path_recorded: (M, 3) every position flown (waypoints and transit
             points, the orbit's included), true and as the GNSS recorded it [m].
         path_estimated: (M, 3) where the navigation believed it was.
-        plans: the plans flown (the first, then each replan).
+        plans: the plans flown (the first, then each replan); plan_turbines: the turbine
+            estimate each was made for.
         replans: how many times the rest of the path was planned again.
         replan_failures: replans the planner refused (the previous plan was kept).
         tracker: the tracker at the end of the flight.
         init_note: how the initial turbine was found.
         timings: seconds per stage.
+        replan_errors: why the planner refused each replan it refused.
+        blade_pitch: the blades' pitch as the renderer draws them [rad].
     """
 
     config: MissionConfig
@@ -277,10 +287,19 @@ class Mission:
     init_note: str
     timings: dict[str, float]
     replan_errors: list[str] = field(default_factory=list)
+    blade_pitch: float = 0.0
+    plan_turbines: list[TurbineParams] = field(default_factory=list)
 
     @property
     def inspection(self) -> list[Keyframe]:
         return [k for k in self.keyframes if k.stage == "inspection"]
+
+    @property
+    def shape(self) -> SurfaceShape:
+        """The blades as the photos show them (the renderer's pitch and twist, in
+        :class:`~turbinefit.inspection.surface.SurfaceShape`'s terms): what locating a
+        defect's side and chord needs, and what the truth's coverage is judged on."""
+        return SurfaceShape(blade_pitch=-self.blade_pitch, blade_twist=-ROOT_TWIST)
 
 
 # ---- the drone's navigation ---------------------------------------------------------------
@@ -441,38 +460,43 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         keyframes.append(kf)
         return kf
 
-    # -- the approach orbit, on GNSS alone
-    orbit = orbit_poses(typed_in, cfg.camera, cfg.orbit_photos)
-    for i in range(cfg.orbit_photos):
-        fly(orbit[i], True, "orbit", None)
-        if progress is not None:
-            progress("orbit", i + 1, cfg.orbit_photos)
-    timings["orbit_s"] = time.perf_counter() - t_start
-
-    # -- the initial turbine: init near the typed-in base, refined by a fit of the orbit
-    t0 = time.perf_counter()
     fit_cfg = cfg.fit_config()
-    initial, init_note = _initial_turbine(keyframes, cfg.map_camera(), typed_in, fit_cfg)
-    tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
-    for kf in keyframes:
-        kf.causal = _update(tracker, kf, rtk).world_T_cam
-    nav.correct(keyframes[-1].recorded, tracker.world_T_cam()[len(keyframes) - 1])
-    timings["init_s"] = time.perf_counter() - t0
+    here: FloatArray | None = None
+    if cfg.closed_loop:
+        # -- the approach orbit, on GNSS alone
+        orbit = orbit_poses(typed_in, cfg.camera, cfg.orbit_photos)
+        for i in range(cfg.orbit_photos):
+            fly(orbit[i], True, "orbit", None)
+            if progress is not None:
+                progress("orbit", i + 1, cfg.orbit_photos)
+        timings["orbit_s"] = time.perf_counter() - t_start
+        # -- the initial turbine: init near the typed-in base, refined by a fit of the orbit
+        t0 = time.perf_counter()
+        initial, init_note = _initial_turbine(keyframes, cfg.map_camera(), typed_in, fit_cfg)
+        tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
+        for kf in keyframes:
+            kf.causal = _update(tracker, kf, rtk).world_T_cam
+        nav.correct(keyframes[-1].recorded, tracker.world_T_cam()[len(keyframes) - 1])
+        here = nav.believed(keyframes[-1].recorded).translation
+        timings["init_s"] = time.perf_counter() - t0
+    else:  # as inspections are flown today: the typed-in turbine, no approach
+        initial, init_note = typed_in, "the typed-in turbine (open loop)"
+        tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
 
     # -- the plan, then waypoint by waypoint
     options = PlanOptions(cfg.standoff, cfg.gsd_mm, max_gimbal_up_deg=cfg.max_gimbal_up_deg)
     t0 = time.perf_counter()
     planned_for = tracker.turbine
-    here = nav.believed(keyframes[-1].recorded).translation
     plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
     timings["plan_s"] += time.perf_counter() - t0
     plans = [plan]
+    plan_turbines = [planned_for]
     done: set[tuple[int, int, float]] = set()
     replans = failures = since = 0
     replan_errors: list[str] = []
-    queue = list(plan.waypoints[1:])
+    queue = list(plan.waypoints[1:] if here is not None else plan.waypoints)
     total = len(plan.photos)
-    while queue:
+    while queue and len(done) < cfg.max_photos:
         w = queue.pop(0)
         shot = fly(_pose(w), w.photo, "inspection", w)
         if shot is None:
@@ -507,12 +531,14 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         planned_for = tracker.turbine
         plan = again
         plans.append(plan)
+        plan_turbines.append(planned_for)
         queue = list(plan.waypoints[1:])
         total = len(done) + len(plan.photos)
     timings["total_s"] = time.perf_counter() - t_start
     return Mission(cfg, truth, typed_in, initial, defects, keyframes, np.array(path_true),
                    np.array(path_rec), np.array(path_est), plans, replans, failures,
-                   tracker, init_note, timings, replan_errors)
+                   tracker, init_note, timings, replan_errors, photos.scene.blade_pitch,
+                   plan_turbines)
 
 
 def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from turbinefit.eval.damage import score_damage
+from turbinefit.eval.damage import DamageScore, score_damage
 from turbinefit.eval.metrics import accuracy
 from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
@@ -35,7 +35,7 @@ from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.inspection.clearance import ROTOR, STRUCTURE, path_clearance, solid_samples
 from turbinefit.inspection.coverage import COVERED_PARTS, flight_coverage, side_names
-from turbinefit.inspection.surface import PARTS, TurbineSurface, locate_box
+from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, locate_box
 from turbinefit.io.defects import LocatedDamage
 from turbinefit.mission.loop import Keyframe, Mission
 from turbinefit.solver.fit import FitResult, fit
@@ -65,6 +65,8 @@ class MissionOutcome:
     damage_baseline: dict[str, Any]
     fit: FitResult
     timings: dict[str, float]
+    damage_score: DamageScore | None = None
+    baseline_score: DamageScore | None = None
 
     def summary(self) -> dict[str, Any]:
         return {"coverage": self.coverage,
@@ -80,10 +82,11 @@ def _poses(kfs: list[Keyframe], which: str) -> SE3:
 
 
 def locate_defects(kfs: list[Keyframe], poses: SE3, turbine: TurbineParams,
-                   camera: PinholeCamera) -> list[LocatedDamage]:
-    """Every defect box of the keyframes ``kfs`` located on ``turbine`` from ``poses``
-    (one per keyframe), as rows of ``damage.csv``."""
-    surface = TurbineSurface(turbine)
+                   camera: PinholeCamera, shape: SurfaceShape | None = None
+                   ) -> list[LocatedDamage]:
+    """Every defect box of the keyframes ``kfs`` located on ``turbine`` (of blades
+    ``shape``) from ``poses`` (one per keyframe), as rows of ``damage.csv``."""
+    surface = TurbineSurface(turbine, shape=shape or SurfaceShape())
     out = []
     for i, kf in enumerate(kfs):
         for b in kf.boxes:
@@ -111,13 +114,14 @@ def final_fit(mission: Mission) -> FitResult:
     return fit(flight, mission.config.fit_config())
 
 
-def mission_outcome(mission: Mission) -> MissionOutcome:
-    """The figures of ``mission`` (module docstring)."""
+def mission_outcome(mission: Mission, result: FitResult | None = None) -> MissionOutcome:
+    """The figures of ``mission`` (module docstring); ``result``: its final fit, if made
+    already (:func:`final_fit`)."""
     t0 = time.perf_counter()
     cfg = mission.config
     truth = mission.truth
     insp = mission.inspection
-    true_surface = TurbineSurface(truth)
+    true_surface = TurbineSurface(truth, shape=mission.shape)
     cover: dict[str, dict[str, float]] = {}
     least = math.nan
     if insp:
@@ -139,7 +143,7 @@ def mission_outcome(mission: Mission) -> MissionOutcome:
     t_clear = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    result = final_fit(mission)
+    result = result if result is not None else final_fit(mission)
     t_fit = time.perf_counter() - t0
     gt = _poses(mission.keyframes, "true")
     est: dict[str, Any] = {}
@@ -165,11 +169,12 @@ def mission_outcome(mission: Mission) -> MissionOutcome:
     photo_cam = cfg.photo_camera()
     index = {k.index: i for i, k in enumerate(mission.keyframes)}
     fitted = SE3(result.world_T_cam.wxyz_xyz[[index[k.index] for k in insp]].reshape(-1, 7))
-    damage = score_damage(locate_defects(insp, fitted, result.turbine, photo_cam),
-                          mission.defects).summary()
+    damage = score_damage(locate_defects(insp, fitted, result.turbine, photo_cam,
+                                         mission.shape), mission.defects)
     baseline = score_damage(locate_defects(insp, _poses(insp, "recorded"), mission.typed_in,
-                                           photo_cam), mission.defects).summary()
+                                           photo_cam, mission.shape), mission.defects)
     t_dmg = time.perf_counter() - t0
-    return MissionOutcome(cover, least, rotor, structure, est, damage, baseline, result,
+    return MissionOutcome(cover, least, rotor, structure, est, damage.summary(),
+                          baseline.summary(), result,
                           {"coverage": t_cov, "clearance": t_clear, "fit": t_fit,
-                           "damage": t_dmg})
+                           "damage": t_dmg}, damage, baseline)
