@@ -625,7 +625,7 @@ def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
 
     samples = solid_samples(surface)
     start = here.translation
-    need = cfg.standoff + check_margin(samples) + 0.1
+    need = options.standoff + check_margin(samples) + 0.1
     backward = -here.rotation_matrix()[:, 2]
     retreat: list[Waypoint] = []
     for _ in range(20):
