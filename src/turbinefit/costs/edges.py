@@ -9,8 +9,11 @@ do (RAPID, Harris 1992; Drummond and Cipolla 2002; ViSP's moving edges), each li
 of the tower and the blades is searched for along the projected line's normal, here in
 the photo's grey levels: the profile is sampled every half pixel of the photo
 (bilinear), differentiated by a derivative of Gaussian, and the pair of gradient extrema
-of opposite sign whose separation fits the part's width (from the solid's proportions at
-that depth), strongest first, is the silhouette. Their midpoint, to sub-pixel precision
+whose separation fits the part's width (from the solid's proportions at that depth),
+strongest first, is the silhouette. The two edges may have the same sign: the lit side
+of a white tower is brighter than the sky behind it while its shaded side is darker
+(requiring opposite signs took the tower's midpoints from 0.13 to 0.23 map px off the
+truth at 1280 px, ``benchmarks/bench_precision.py``). Their midpoint, to sub-pixel precision
 (a parabola through each extremum), is the line's position in the photo: a
 correspondence along the normal for the line sample, whitened by ``edge_sigma`` px of the
 photo (the cost and Jacobians of :mod:`turbinefit.costs.correspondence`'s normal
@@ -42,6 +45,8 @@ SUBSTEP = 2
 DOG_SIGMA = 1.0
 #: Separations of the two edges within [1 / t, t] times the expected widths count.
 WIDTH_TOLERANCE = 1.4
+#: Extrema of each profile considered for the pair (the strongest).
+PEAKS = 12
 #: Least gradient of an edge [grey levels per photo px] (sensor noise is ~1-3 levels).
 MIN_CONTRAST = 4.0
 
@@ -108,7 +113,7 @@ def find_edge_correspondences(
     photos: PhotoStack, keyframes: NDArray[np.int_], centre: FloatArray, normal: FloatArray,
     usable: NDArray[np.bool_], half_width: FloatArray, reach: float,
     width_tolerance: float = WIDTH_TOLERANCE, min_contrast: float = MIN_CONTRAST,
-    chunk: int = 256,
+    chunk: int = 1024,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """The silhouettes' midpoints along the normals (module docstring).
 
@@ -123,7 +128,7 @@ def find_edge_correspondences(
         reach: how far the midpoint may lie from ``centre`` [map px].
         width_tolerance: separations within ``[2 lo / t, 2 hi t]`` count.
         min_contrast: least gradient magnitude of each edge [grey levels per photo px].
-        chunk: samples searched at once (memory: chunk x profile length^2).
+        chunk: samples searched at once (memory: chunk x profile length).
 
     Returns:
         ``(target, found)``: (N, M, 2) midpoints [map px] and (N, M) where one was found.
@@ -167,20 +172,26 @@ def _search(photos: PhotoStack, kf: NDArray[np.int_], centre: FloatArray, nrm: F
     peak = np.zeros_like(ok)
     peak[:, 1:-1] = (ag[:, 1:-1] >= ag[:, :-2]) & (ag[:, 1:-1] > ag[:, 2:])
     peak &= ok
-    # the strongest pair (i < j) of opposite sign whose separation fits the width and
-    # whose midpoint is within reach of the centre
-    sep = t[None, :, None] - t[None, None, :]  # [j, i]: t_j - t_i
-    mid = 0.5 * (t[None, :, None] + t[None, None, :])
-    sg = np.sign(g)
-    pair = (peak[:, :, None] & peak[:, None, :] & (sg[:, :, None] != sg[:, None, :])
+    # the strongest pair (of either sign) among the PEAKS strongest extrema whose
+    # separation fits the width and whose midpoint is within reach of the centre
+    K, T = g.shape
+    P = min(PEAKS, T)
+    cand = np.argsort(-np.where(peak, ag, -1.0), axis=1)[:, :P]  # (K, P) profile indices
+    rows = np.arange(K)[:, None]
+    cg = g[rows, cand]
+    cok = peak[rows, cand]
+    ct = t[cand]
+    sep = ct[:, :, None] - ct[:, None, :]  # [j, i]: t_j - t_i
+    mid = 0.5 * (ct[:, :, None] + ct[:, None, :])
+    pair = (cok[:, :, None] & cok[:, None, :]
             & (sep > lo[:, None, None]) & (sep < hi[:, None, None])
             & (np.abs(mid) <= reach * s))
-    strength = np.where(pair, np.minimum(ag[:, :, None], ag[:, None, :]), -1.0)
-    K, T = g.shape
+    cag = np.abs(cg)
+    strength = np.where(pair, np.minimum(cag[:, :, None], cag[:, None, :]), -1.0)
     flat = strength.reshape(K, -1).argmax(axis=1)
     has = strength.reshape(K, -1)[np.arange(K), flat] > 0
-    j = flat // T
-    i = flat % T
+    j = cand[np.arange(K), flat // P]
+    i = cand[np.arange(K), flat % P]
     grid = np.arange(T)
     ti = np.interp(_extremum(ag, i), grid, t)
     tj = np.interp(_extremum(ag, j), grid, t)

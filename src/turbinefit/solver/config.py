@@ -92,8 +92,9 @@ class FitConfig:
     the projected lines, where the keyframes come with their grey photos
     (``Flight.photos``) and lines=corr; 0 = off, the default: on the benchmark flights it
     made the fits worse (docs/benchmarks.md, "Precision beyond the net")."""
-    edge_sigma: float = 0.5
-    """Noise of an edge midpoint [px of the photo as the edge term reads it]."""
+    edge_sigma: float = 2.0
+    """Noise of an edge midpoint [px of the photo as the edge term reads it] (of 0.5, 1
+    and 2, 2 fitted three 1280 x 960 photo flights best)."""
     edge_reach: float = 2.0
     """How far the edge midpoint may lie from the net's line correspondence [px of maps
     320 px wide]."""

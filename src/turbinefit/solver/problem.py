@@ -73,6 +73,10 @@ FloatArray = NDArray[np.float64]
 
 #: The lines whose silhouettes the edge term searches: the tower and the three blades.
 EDGE_LINES = (0, 2, 3, 4)
+#: Photos less than this many times the maps' size are not searched for edges: at the
+#: maps' own resolution the net's line correspondences are the more precise (0.19-0.24
+#: against 0.42 map px off the true lines, ``benchmarks/bench_precision.py``).
+MIN_EDGE_SCALE = 2.0
 #: Line samples nearer the camera than this [m] are not searched for edges.
 MIN_EDGE_DEPTH = 1.0
 
@@ -278,9 +282,10 @@ class FitProblem:
             self._motion_sqrt_info = math.sqrt(config.lambda_motion) * self.motions.sqrt_info
             self._motion_loss = RobustLoss("cauchy", config.motion_robust_scale)
         #: the flight's photos for the edge term (indexed by ``keyframes``), or None
+        photos = getattr(data, "photos", None)
         self.photos: PhotoStack | None = (
-            getattr(data, "photos", None)
-            if config.lambda_edges > 0 and config.lines == "corr" else None)
+            photos if config.lambda_edges > 0 and config.lines == "corr"
+            and photos is not None and photos.scale >= MIN_EDGE_SCALE else None)
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
         self._line_index = np.repeat(np.arange(len(LINES)), n)
