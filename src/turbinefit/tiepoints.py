@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from turbinefit.costs.relative_motion import RelativeMotions, _perpendicular_basis
+from turbinefit.costs.relative_motion import RelativeMotions, perpendicular_basis
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import matrix_to_quat, so3_exp
 
@@ -141,7 +141,7 @@ def _sampson_jacobian(x1: FloatArray, x2: FloatArray, R: FloatArray, d: FloatArr
                       focal: float) -> tuple[FloatArray, FloatArray]:
     """Sampson errors (n,) [px] and their forward-difference Jacobian (n, 5) w.r.t. the
     five degrees of freedom of :func:`_perturbed`."""
-    B = _perpendicular_basis(d[None])[0]
+    B = perpendicular_basis(d[None])[0]
     r0 = _sampson(x1, x2, R, d) * focal
     J = np.empty((len(r0), 5))
     h = 1e-7
@@ -169,7 +169,7 @@ def _refine(x1: FloatArray, x2: FloatArray, R: FloatArray, d: FloatArray, focal:
             break
         if not np.all(np.isfinite(step)):
             break
-        R, d = _perturbed(R, d, _perpendicular_basis(d[None])[0], step)
+        R, d = _perturbed(R, d, perpendicular_basis(d[None])[0], step)
         if float(np.linalg.norm(step)) < 1e-10:
             break
     return R, d

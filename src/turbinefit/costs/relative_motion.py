@@ -38,7 +38,7 @@ FloatArray = NDArray[np.float64]
 MOTION_DIM = 5
 
 
-def _perpendicular_basis(d: FloatArray) -> FloatArray:
+def perpendicular_basis(d: FloatArray) -> FloatArray:
     """(E, 3, 2) orthonormal bases of the planes perpendicular to the unit vectors d (E, 3)."""
     a = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]),
                  np.array([[0.0, 1.0, 0.0]]))
@@ -131,7 +131,7 @@ def relative_motion_residuals(
     moved = length[:, 0] > 1e-9
     u = t_ij / np.maximum(length, 1e-9)
     d = i_dir_j / np.maximum(np.linalg.norm(i_dir_j, axis=-1, keepdims=True), 1e-12)
-    B = _perpendicular_basis(d)
+    B = perpendicular_basis(d)
     q_ij = quat_multiply(quat_conjugate(world_T_i.wxyz), world_T_j.wxyz)
     e_q = quat_multiply(i_q_j, quat_conjugate(q_ij))
     e_q = np.where(e_q[..., :1] < 0.0, -e_q, e_q)
