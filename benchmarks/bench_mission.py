@@ -128,12 +128,22 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--timing", action="store_true", help="also time one mission alone")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "bench_mission.json")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the missions of an interrupted run (OUT.partial.json)")
     args = ap.parse_args()
     types = args.types.split(",")
     jobs = [(s, types[s % len(types)], k, args.maps) for s in range(args.missions)
             for k in args.kinds.split(",")]
     rows: list[dict[str, Any]] = []
     partial = args.out.with_suffix(".partial.json")
+    if args.resume and partial.exists():
+        wanted = {(s, t, k) for s, t, k, _ in jobs}
+        rows = [r for r in json.loads(partial.read_text())
+                if (r["seed"], r["turbine"], r["kind"]) in wanted]
+        done = {(r["seed"], r["turbine"], r["kind"]) for r in rows}
+        jobs = [j for j in jobs if (j[0], j[1], j[2]) not in done]
+        print(f"resuming: {len(rows)} missions kept, {len(jobs)} to fly", flush=True)
+    total = len(rows) + len(jobs)
     os.environ["OMP_NUM_THREADS"] = "1"
     t0 = time.perf_counter()
     with cf.ProcessPoolExecutor(args.workers) as pool:
@@ -141,7 +151,7 @@ def main() -> None:
         for f in cf.as_completed(futures):
             rows.append(f.result())
             r = rows[-1]
-            print(f"[{len(rows)}/{len(jobs)} {time.perf_counter() - t0:.0f} s] seed {r['seed']} "
+            print(f"[{len(rows)}/{total} {time.perf_counter() - t0:.0f} s] seed {r['seed']} "
                   f"{r['turbine']} {r['kind']}: least side {r['least_side_coverage']:.3f}, "
                   f"rotor {r['clearance_rotor_m']:.2f} m, fit "
                   f"{r['estimate']['fit']['turbine_frame_position_m']:.3f} m in the turbine's "

@@ -173,8 +173,9 @@ def test_one_keyframe_track_fails_as_fit_does(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     """One keyframe (seed 4) leaves the base's position unfixed: fit and track both end
     ``failed`` with exit status 3, for the same reason, with the same standard deviations
-    of the parameters the view does fix (the tracker's start-up prior, counted as
-    information, used to cap the base's at 2 m and call it ``ok``)."""
+    of the parameters the view does fix where both still factor theta's information (the
+    tracker's start-up prior, counted as information, used to cap the base's at 2 m and
+    call it ``ok``)."""
     flight = tmp_path / "flight"
     assert main(["simulate", str(flight), "--keyframes", "1", "--seed", "4", "--quiet"]) == 0
     summaries = {}
@@ -187,7 +188,18 @@ def test_one_keyframe_track_fails_as_fit_does(tmp_path: Path,
     for s in summaries.values():
         assert s["verdict"] == "failed"
         assert any(r.startswith("base_") or "singular" in r for r in s["reasons"]), s["reasons"]
-    fit_std = summaries["fit"]["turbine"]["std"]
+    # theta's information is rank-deficient here: whether its Cholesky factor still exists
+    # (standard deviations of millions of metres) or breaks down (singular) depends on
+    # rounding, so on the machine and on the compiled kernels; either way it fails
+    for s in summaries.values():
+        std = s["signals"]["theta_std"]
+        if std is None:
+            assert any("singular" in r for r in s["reasons"]), s["reasons"]
+        else:
+            assert max(std["base_x"], std["base_y"]) > 1e3, std
+            assert std["heading"] < 0.05 and std["blade_rotation"] < 0.05, std
+    fit_std = summaries["fit"]["signals"]["theta_std"]
     track_std = summaries["track"]["signals"]["theta_std"]
-    for name in ("tower_height", "blade_rotation", "blade_length"):
-        assert track_std[name] == pytest.approx(fit_std[name], rel=0.3), name
+    if fit_std is not None and track_std is not None:
+        for name in ("heading", "blade_rotation"):
+            assert track_std[name] == pytest.approx(fit_std[name], rel=0.3), name
