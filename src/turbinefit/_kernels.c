@@ -20,9 +20,17 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include <errno.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
+
+#ifndef _WIN32
+#include <sys/mman.h>
+#include <unistd.h>
+#define TF_HAVE_MMAP 1
+#endif
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -140,19 +148,194 @@ static inline float half_value(uint16_t h) {
     return o.f;
 }
 
+/* ---- heat-map files, mapped, holding only the pages read ----------------------------
+ *
+ * A flight's heat-map files are mapped read-only, one mapping per keyframe, and the
+ * kernels read them in place. A fit reads a quarter to a third of their pages (the bands
+ * round the projected model), but the kernel's fault-around maps the pages next to each
+ * one read (64 kB at a time on Linux), which over a fit is in effect all of them, and
+ * every mapped page counts in the process's memory. So the kernels note each page they
+ * read (`used`), and when a kernel is done with a keyframe that read a page for the first
+ * time, the pages mapped round it that nothing read are dropped again (madvise
+ * MADV_DONTNEED: they stay in the page cache, and a later read maps them back). The
+ * process then holds the pages read, and the pages of a keyframe or two per thread. The
+ * value check reads each file whole and drops it at once (tf_files_check). */
+
+/* Relaxed loads and stores of the page notes (GCC, Clang; MSVC maps no files). */
+#ifdef _MSC_VER
+#define LOAD_U8(p) (*(volatile uint8_t *)(p))
+#define STORE_U8(p, v) (*(volatile uint8_t *)(p) = (v))
+#else
+#define LOAD_U8(p) __atomic_load_n((p), __ATOMIC_RELAXED)
+#define STORE_U8(p, v) __atomic_store_n((p), (v), __ATOMIC_RELAXED)
+#endif
+
+typedef struct {
+    int64_t n, count, half, itemsize, page_shift, npages;
+    char **base;          /* per keyframe: its mapping (from the file's start) */
+    size_t *length;       /* per keyframe: bytes mapped */
+    int64_t *offset;      /* per keyframe: where its values start */
+    uint8_t *used;        /* n * npages: pages a kernel read */
+    uint8_t *dirty;       /* n: a page read for the first time since the last trim */
+} TfFiles;
+
+TF_EXPORT void tf_files_free(void *handle);
+
+/* Drop the pages of keyframe k that no kernel read (all of them if `all`). */
+static void files_drop(TfFiles *fl, int64_t k, int all) {
+#ifdef TF_HAVE_MMAP
+    const uint8_t *used = fl->used + k * fl->npages;
+    const int64_t pages = (int64_t)((fl->length[k] + ((size_t)1 << fl->page_shift) - 1)
+                                    >> fl->page_shift);
+    int64_t p = 0;
+    while (p < pages) {
+        while (p < pages && !all && LOAD_U8(used + p)) p++;
+        const int64_t start = p;
+        while (p < pages && (all || !LOAD_U8(used + p))) p++;
+        if (p > start)
+            madvise(fl->base[k] + (start << fl->page_shift),
+                    (size_t)((p - start) << fl->page_shift), MADV_DONTNEED);
+    }
+#else
+    (void)fl; (void)k; (void)all;
+#endif
+}
+
+/* After a kernel is done with keyframe k (its index among the files): drop the pages
+ * mapped round the ones it read for the first time. */
+static void files_trim(const void *files, uint64_t k) {
+    TfFiles *fl = (TfFiles *)files;
+    if (fl == NULL || !fl->dirty[k]) return;
+    fl->dirty[k] = 0;
+    files_drop(fl, (int64_t)k, 0);
+}
+
+/* Map N keyframes' heat-map files (descriptors fds, which the caller may close at once;
+ * values from offsets[k], `count` each, float16 if `half` else float32). Returns the
+ * handle, or 0 with errno set (no mapping or memory; no mmap on this platform). */
+TF_EXPORT void *tf_files_new(int64_t n, const int64_t *fds, const int64_t *offsets,
+                             int64_t count, int64_t half) {
+#ifndef TF_HAVE_MMAP
+    (void)n; (void)fds; (void)offsets; (void)count; (void)half;
+    errno = ENOSYS;
+    return NULL;
+#else
+    TfFiles *fl = (TfFiles *)calloc(1, sizeof(TfFiles));
+    if (fl == NULL) return NULL;
+    fl->n = n;
+    fl->count = count;
+    fl->half = half;
+    fl->itemsize = half ? 2 : 4;
+    long page = sysconf(_SC_PAGESIZE);
+    fl->page_shift = 12;
+    while (page > 0 && ((int64_t)1 << fl->page_shift) < page) fl->page_shift++;
+    const size_t m = (size_t)(n > 0 ? n : 1);
+    fl->base = (char **)calloc(m, sizeof(char *));
+    fl->length = (size_t *)calloc(m, sizeof(size_t));
+    fl->offset = (int64_t *)calloc(m, sizeof(int64_t));
+    fl->dirty = (uint8_t *)calloc(m, 1);
+    int64_t most = 0;
+    for (int64_t k = 0; k < n; k++)
+        if (offsets[k] > most) most = offsets[k];
+    fl->npages = (most + count * fl->itemsize + ((int64_t)1 << fl->page_shift) - 1)
+                 >> fl->page_shift;
+    fl->used = (uint8_t *)calloc(m * (size_t)fl->npages, 1);
+    int ok = fl->base && fl->length && fl->offset && fl->dirty && fl->used;
+    for (int64_t k = 0; ok && k < n; k++) {
+        fl->offset[k] = offsets[k];
+        fl->length[k] = (size_t)(offsets[k] + count * fl->itemsize);
+        void *p = mmap(NULL, fl->length[k], PROT_READ, MAP_SHARED, (int)fds[k], 0);
+        if (p == MAP_FAILED) ok = 0;
+        else fl->base[k] = (char *)p;
+    }
+    if (!ok) {
+        int err = errno ? errno : ENOMEM;
+        tf_files_free(fl);
+        errno = err;
+        return NULL;
+    }
+    return fl;
+#endif
+}
+
+/* Unmap the files. */
+TF_EXPORT void tf_files_free(void *handle) {
+    TfFiles *fl = (TfFiles *)handle;
+    if (fl == NULL) return;
+#ifdef TF_HAVE_MMAP
+    for (int64_t k = 0; fl->base && k < fl->n; k++)
+        if (fl->base[k] != NULL) munmap(fl->base[k], fl->length[k]);
+#endif
+    free(fl->base); free(fl->length); free(fl->offset); free(fl->used); free(fl->dirty);
+    free(fl);
+}
+
+/* Pages the kernels read so far (the bytes the process holds of the files). */
+TF_EXPORT int64_t tf_files_used(const void *handle) {
+    const TfFiles *fl = (const TfFiles *)handle;
+    int64_t total = 0;
+    for (int64_t i = 0; i < fl->n * fl->npages; i++) total += fl->used[i];
+    return total << fl->page_shift;
+}
+
+/* Copy keyframe k's values into out (count values), holding no page of it but those the
+ * kernels read. */
+TF_EXPORT void tf_files_read(void *handle, int64_t k, void *out) {
+    TfFiles *fl = (TfFiles *)handle;
+    memcpy(out, fl->base[k] + fl->offset[k], (size_t)(fl->count * fl->itemsize));
+    files_drop(fl, k, 0);
+}
+
 /* One channel plane of a keyframe's heat-maps, stored as float32 or float16 (the maps of
- * a flight share one storage; float16 values are read through half_value). */
+ * a flight share one storage; float16 values are read through half_value); with files,
+ * the kernels note the rows they are about to read (mark_rows). */
 typedef struct {
     const float *f;
     const uint16_t *h;
+    uint8_t *used;     /* files: the keyframe's row of TfFiles.used, else NULL */
+    uint8_t *dirty;    /* files: the keyframe's TfFiles.dirty */
+    size_t first;      /* files: the byte of the plane's first value in its file */
+    int64_t isz, page_shift;
 } Plane;
 
-/* The plane that starts `offset` values into the maps at address `addr`. */
-static inline Plane plane_at(uint64_t addr, int64_t half, size_t offset) {
+/* The plane that starts `offset` values into the maps of keyframe `addr`: the address of
+ * its array or, with `files`, its index among them. */
+static inline Plane plane_at(uint64_t addr, int64_t half, const void *files, size_t offset) {
     Plane p;
-    p.f = half ? NULL : (const float *)(uintptr_t)addr + offset;
-    p.h = half ? (const uint16_t *)(uintptr_t)addr + offset : NULL;
+    const TfFiles *fl = (const TfFiles *)files;
+    const char *data = fl ? fl->base[addr] + fl->offset[addr] : (const char *)(uintptr_t)addr;
+    p.f = half ? NULL : (const float *)data + offset;
+    p.h = half ? (const uint16_t *)data + offset : NULL;
+    p.used = fl ? fl->used + (int64_t)addr * fl->npages : NULL;
+    p.dirty = fl ? fl->dirty + addr : NULL;
+    p.isz = half ? 2 : 4;
+    p.first = fl ? (size_t)fl->offset[addr] + offset * (size_t)p.isz : 0;
+    p.page_shift = fl ? fl->page_shift : 0;
     return p;
+}
+
+/* Note that rows r0..r1 (clamped to 0..H-1) of a plane W values wide are about to be read
+ * (files only): their pages are then kept. */
+static inline void mark_rows(Plane p, int r0, int r1, int W, int H) {
+    if (p.used == NULL) return;
+    r0 = clampi(r0, 0, H - 1);
+    r1 = clampi(r1, 0, H - 1);
+    const size_t row = (size_t)W * (size_t)p.isz;
+    const size_t a = (p.first + (size_t)r0 * row) >> p.page_shift;
+    const size_t b = (p.first + (size_t)(r1 + 1) * row - 1) >> p.page_shift;
+    for (size_t q = a; q <= b; q++)
+        if (!LOAD_U8(p.used + q)) {
+            STORE_U8(p.used + q, 1);
+            *p.dirty = 1;
+        }
+}
+
+/* mark_rows of the rows from floor(v0) to floor(v1) + 1 (v0 <= v1; any double). */
+static inline void mark_span(Plane p, double v0, double v1, int W, int H) {
+    if (p.used == NULL) return;
+    const double top = H - 1;
+    mark_rows(p, (int)fmax(fmin(floor(v0), top), 0.0), (int)fmax(fmin(floor(v1) + 1.0, top), 0.0),
+              W, H);
 }
 
 /* Value i of a plane. */
@@ -171,6 +354,7 @@ static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
     cr_weights(u - u0, wu, dwu, d2wu);
     cr_weights(v - v0, wv, dwv, d2wv);
     int iu = (int)u0, iv = (int)v0;
+    mark_rows(plane, iv - 1, iv + 2, W, H);
     int cols[4];
     for (int j = 0; j < 4; j++) cols[j] = clampi(iu - 1 + j, 0, W - 1);
     double val = 0, gu = 0, gv = 0, huu = 0, huv = 0, hvv = 0;
@@ -262,7 +446,8 @@ TF_EXPORT int64_t tf_image_terms(
     int64_t N, int64_t M, const double *poses, const double *cam_par, int64_t width,
     int64_t height, const double *A, const double *B, const double *JA, const double *JB,
     const double *frac, int64_t frac_stride, const int64_t *channels,
-    const uint64_t *maps, int64_t half, const int64_t *keyframes, int64_t kind, const double *target,
+    const uint64_t *maps, int64_t half, const void *files, const int64_t *keyframes, int64_t kind,
+    const double *target,
     const uint8_t *found, const double *normal, const double *par, int64_t with_jacobian, double *JtHJ, double *g,
     double *cost, int64_t *count) {
     Camera cam = camera_from(cam_par, (int)width, (int)height);
@@ -306,7 +491,7 @@ TF_EXPORT int64_t tf_image_terms(
                 if (!front) dwb[0] = dwb[1] = 0.0;
                 if (front && in_image(&cam, uv)) cnt++;
                 double G, dG[2], hG[3];
-                Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+                Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
                 bad |= bicubic(pl, W, H, uv[0], uv[1], &G, dG, hG);
                 double Gc = fmin(fmax(G, 0.0), 1.0);
                 double rho = log1p_eps - log(Gc + eps);
@@ -408,6 +593,7 @@ TF_EXPORT int64_t tf_image_terms(
         }
         cost[n] += c_n;
         count[n] += cnt;
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
@@ -451,7 +637,8 @@ static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *
  * found (N, M). Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_point_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
-    const int64_t *keyframes, const int64_t *channels, const double *uv, const uint8_t *usable,
+    const void *files, const int64_t *keyframes, const int64_t *channels, const double *uv,
+    const uint8_t *usable,
     int64_t R, const int64_t *coarse, int64_t K1, const int64_t *fine, int64_t K2,
     int64_t step, double threshold, double *target, uint8_t *found) {
     const int W = (int)width, H = (int)height, s = (int)step;
@@ -463,18 +650,21 @@ TF_EXPORT int64_t tf_point_search_scaled(
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+            Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
             int use = usable[i];
             int cu0 = (int)nearbyint(uv[2 * i]), cv0 = (int)nearbyint(uv[2 * i + 1]);
             int bu, bv, fu, fv;
             double peak;
             if (use) {
+                /* every row read: the disc, the fine square round its best, the neighbours */
+                mark_rows(pl, cv0 - (int)R - 3 * s, cv0 + (int)R + 3 * s, W, H);
                 window_max(pl, W, H, cu0, cv0, coarse, K1, cu0, cv0, R, &bu, &bv, &bad);
                 peak = window_max(pl, W, H, bu, bv, fine, K2, cu0, cv0, R, &fu, &fv, &bad);
             } else {
                 peak = -1.0;
                 fu = clampi(cu0 + (int)coarse[0], 0, W - 1);
                 fv = clampi(cv0 + (int)coarse[1], 0, H - 1);
+                mark_rows(pl, fv - s, fv + s, W, H);
             }
             int inner = fu >= s && fu <= W - 1 - s && fv >= s && fv <= H - 1 - s;
             found[i] = use && peak >= threshold && inner;
@@ -486,6 +676,7 @@ TF_EXPORT int64_t tf_point_search_scaled(
             target[2 * i] = fu + s * peak_offset(n0, peak, n1);
             target[2 * i + 1] = fv + s * peak_offset(n2, peak, n3);
         }
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
@@ -508,7 +699,8 @@ static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, in
  * Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_line_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
-    const int64_t *keyframes, const int64_t *channels, const double *uv, const double *normal,
+    const void *files, const int64_t *keyframes, const int64_t *channels, const double *uv,
+    const double *normal,
     const uint8_t *usable, int64_t L, double step, double threshold, double *target,
     uint8_t *found) {
     const int W = (int)width, H = (int)height;
@@ -521,10 +713,12 @@ TF_EXPORT int64_t tf_line_search_scaled(
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+            Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
             int use = usable[i];
             double u0 = uv[2 * i], v0 = uv[2 * i + 1];
             double nu = normal[2 * i], nv = normal[2 * i + 1];
+            const double reach = (double)(L + 1) * step * fabs(nv); /* the fine samples' too */
+            mark_span(pl, v0 - reach, v0 + reach, W, H);
             double best = -INFINITY, v_cm = -1.0, v_cp = -1.0, prev = -1.0;
             int64_t kc = 0;
             int after = 0;
@@ -548,6 +742,7 @@ TF_EXPORT int64_t tf_line_search_scaled(
             target[2 * i] = u0 + s * nu;
             target[2 * i + 1] = v0 + s * nv;
         }
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
@@ -680,44 +875,98 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
     return 0;
 }
 
-/* Value check of heat-map files: the first of N keyframes (float32 arrays, or float16 if
+/* The values a heat-map may hold, [lo, hi] in float32, and for float16 the magnitudes (15
+ * bits) in range for each sign, [a0, b0] and [a1, b1] (empty if a > b): a half's value
+ * grows with its magnitude bits, and NaNs (above 0x7c00) lie beyond every range, so the
+ * check of float16 compares integers. */
+typedef struct {
+    float lo, hi;
+    int16_t a0, b0, a1, b1;
+} ValueRange;
+
+static ValueRange value_range(double lo, double hi, int64_t half) {
+    ValueRange r;
+    r.lo = (float)lo;
+    r.hi = (float)hi;
+    r.a0 = 0x7fff; r.b0 = 0; r.a1 = 0x7fff; r.b1 = 0; /* empty unless found below */
+    for (int16_t m = 0; half && m <= 0x7c00; m++) {
+        const float v = half_value((uint16_t)m);
+        if (v >= r.lo && v <= r.hi) { if (r.a0 > m) r.a0 = m; r.b0 = m; }
+        if (-v >= r.lo && -v <= r.hi) { if (r.a1 > m) r.a1 = m; r.b1 = m; }
+    }
+    return r;
+}
+
+/* Whether `count` values at p (float16 if half) hold a NaN or a value outside r. */
+static int out_of_range(const void *p, int64_t half, int64_t count, const ValueRange *r) {
+    if (half) {
+        const uint16_t *q = (const uint16_t *)p;
+        const int16_t a0 = r->a0, b0 = r->b0, a1 = r->a1, b1 = r->b1;
+        int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
+        for (int64_t i = 0; i < count; i++) {
+            const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
+            const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
+            const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
+            const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
+            acc |= (int16_t)((m < lo_m) | (m > hi_m));
+        }
+        return acc != 0;
+    }
+    const float *f = (const float *)p;
+    const float flo = r->lo, fhi = r->hi;
+    int bad = 0;
+    for (int64_t i = 0; i < count; i++) {
+        const float v = f[i];
+        bad |= !(v >= flo) | !(v <= fhi);
+    }
+    return bad;
+}
+
+/* Value check of heat-map arrays: the first of N keyframes (float32 arrays, or float16 if
  * `half`, of `count` values at the addresses `maps`) holding a value outside [lo, hi] or a
  * NaN, or N if none. One pass over the data on all threads (the caller names the file and
  * value). */
 TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t half,
                                         int64_t count, double lo, double hi) {
-    const float flo = (float)lo, fhi = (float)hi;
-    /* float16: the magnitudes (15 bits) in range for each sign, [a[s], b[s]] (empty if
-     * a > b): a half's value grows with its magnitude bits, and NaNs (above 0x7c00) lie
-     * beyond every range, so the check compares integers */
-    int16_t a0 = 0x7fff, b0 = 0, a1 = 0x7fff, b1 = 0; /* empty unless found below */
-    for (int16_t m = 0; half && m <= 0x7c00; m++) {
-        const float v = half_value((uint16_t)m);
-        if (v >= flo && v <= fhi) { if (a0 > m) a0 = m; b0 = m; }
-        if (-v >= flo && -v <= fhi) { if (a1 > m) a1 = m; b1 = m; }
-    }
+    const ValueRange r = value_range(lo, hi, half);
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
-        const float *p = (const float *)(uintptr_t)maps[n];
-        const uint16_t *q = (const uint16_t *)(uintptr_t)maps[n];
-        int bad = 0;
-        if (half) {
-            int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
-            for (int64_t i = 0; i < count; i++) {
-                const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
-                const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
-                const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
-                const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
-                acc |= (int16_t)((m < lo_m) | (m > hi_m));
-            }
-            bad = acc != 0;
-        } else {
-            for (int64_t i = 0; i < count; i++) {
-                const float v = p[i];
-                bad |= !(v >= flo) | !(v <= fhi);
-            }
+        if (out_of_range((const void *)(uintptr_t)maps[n], half, count, &r) && n < first_bad)
+            first_bad = n;
+    }
+    return first_bad == INT64_MAX ? N : first_bad;
+}
+
+/* Value check of heat-map files, as tf_first_out_of_range: every keyframe read once on all
+ * threads through its mapping, and its pages dropped once it is checked (so that the
+ * process holds a few at a time); the first keyframe holding a NaN or a value outside
+ * [lo, hi], or N if none. With `grid` (N, channels, nrows, ncols values of the storage):
+ * it also keeps the values of rows `rows` (nrows) of each channel at every `step`-th of
+ * the W columns (ncols = ceil(W / step)): the coarse grid of HeatmapStack.coarse_grid. */
+TF_EXPORT int64_t tf_files_check(void *handle, double lo, double hi, int64_t H, int64_t W,
+                                 const int64_t *rows, int64_t nrows, int64_t step,
+                                 void *grid) {
+    TfFiles *fl = (TfFiles *)handle;
+    const ValueRange r = value_range(lo, hi, fl->half);
+    const int64_t N = fl->n, isz = fl->itemsize;
+    const int64_t ncols = (W + step - 1) / step;
+    const int64_t channels = fl->count / (H * W);
+    int64_t first_bad = INT64_MAX;
+#pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
+    for (int64_t n = 0; n < N; n++) {
+        const char *buf = fl->base[n] + fl->offset[n];
+        int bad = out_of_range(buf, fl->half, fl->count, &r);
+        if (!bad && grid != NULL) {
+            char *g = (char *)grid + n * channels * nrows * ncols * isz;
+            for (int64_t c = 0; c < channels; c++)
+                for (int64_t i = 0; i < nrows; i++) {
+                    const char *row = buf + ((c * H + rows[i]) * W) * isz;
+                    for (int64_t j = 0; j < ncols; j++, g += isz)
+                        memcpy(g, row + j * step * isz, (size_t)isz);
+                }
         }
+        files_drop(fl, n, 0);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? N : first_bad;

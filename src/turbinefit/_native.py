@@ -4,8 +4,10 @@ The kernels fuse, per keyframe, what the numpy reference implementation does in 
 vectorised passes: projecting the model, evaluating the heat-map or correspondence cost
 with its gradient and Hessian model, and folding the result into the keyframe's 13 x 13
 normal-equation block; also the correspondence searches and the block-tridiagonal solve.
-They read the heat-maps in place (memory maps included) through one pointer per keyframe,
-float32 or float16 as a flight stores them.
+They read the heat-maps in place through one pointer per keyframe, float32 or float16 as a
+flight stores them; a flight's heat-map files (:class:`FileMaps`) are mapped, and the
+kernels note the pages they read and drop the others that the system maps round them, so
+that a fit holds the quarter or third of a flight's maps it reads, not all of them.
 No library offers these model-specific loops (the solver study measured generic back-ends
 with per-factor Python callbacks 5-30x slower than the vectorised numpy version, which in
 turn spends 130 ms per evaluation of a 1000-keyframe flight on temporaries).
@@ -21,7 +23,8 @@ from __future__ import annotations
 import ctypes
 import importlib.util
 import os
-from typing import Any
+import weakref
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,7 +48,7 @@ def _load() -> ctypes.CDLL | None:
     if spec is None or spec.origin is None:
         return None
     try:
-        lib = ctypes.CDLL(spec.origin)
+        lib = ctypes.CDLL(spec.origin, use_errno=True)
         _declare(lib)
     except (OSError, AttributeError):  # not loadable, or built from an older _kernels.c
         return None
@@ -57,15 +60,15 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_image_terms.restype = _int
     lib.tf_image_terms.argtypes = [
         _int, _int, _f64, _f64, _int, _int, _f64, _f64, _ptr, _ptr, _ptr, _int, _i64, _u64,
-        _int, _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
+        _int, _ptr, _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
     lib.tf_point_search_scaled.restype = _int
     lib.tf_point_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _u8, _int, _i64, _int, _i64,
-        _int, _int, _dbl, _f64, _u8]
+        _int, _int, _int, _int, _u64, _int, _ptr, _i64, _i64, _f64, _u8, _int, _i64, _int,
+        _i64, _int, _int, _dbl, _f64, _u8]
     lib.tf_line_search_scaled.restype = _int
     lib.tf_line_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _dbl,
-        _f64, _u8]
+        _int, _int, _int, _int, _u64, _int, _ptr, _i64, _i64, _f64, _f64, _u8, _int, _dbl,
+        _dbl, _f64, _u8]
     lib.tf_block_tridiag_solve.restype = _int
     lib.tf_block_tridiag_solve.argtypes = [_int, _int, _f64, _f64, _f64, _f64]
     lib.tf_project.restype = None
@@ -74,6 +77,16 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_num_threads.argtypes = []
     lib.tf_first_out_of_range.restype = _int
     lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _int, _dbl, _dbl]
+    lib.tf_files_new.restype = _ptr
+    lib.tf_files_new.argtypes = [_int, _i64, _i64, _int, _int]
+    lib.tf_files_free.restype = None
+    lib.tf_files_free.argtypes = [_ptr]
+    lib.tf_files_used.restype = _int
+    lib.tf_files_used.argtypes = [_ptr]
+    lib.tf_files_read.restype = None
+    lib.tf_files_read.argtypes = [_ptr, _int, _ptr]
+    lib.tf_files_check.restype = _int
+    lib.tf_files_check.argtypes = [_ptr, _dbl, _dbl, _int, _int, _i64, _int, _int, _ptr]
 
 
 _LIB = _load()
@@ -100,6 +113,97 @@ def first_out_of_range(maps: NDArray[np.uint64], half: bool, count: int, lo: flo
     assert _LIB is not None
     return int(_run(_LIB.tf_first_out_of_range, len(maps), _c(maps, np.uint64), int(half),
                     int(count), float(lo), float(hi)))
+
+
+class NativeMaps(NamedTuple):
+    """How the kernels reach a stack's heat-maps
+    (:meth:`turbinefit.heatmaps.HeatmapStack.native_maps`): per keyframe, the address of
+    its (7, H, W) array in memory or, with ``files`` (a :class:`FileMaps` handle), its index
+    among the files; float16 if ``half``, else float32."""
+
+    maps: NDArray[np.uint64]
+    half: bool
+    files: int | None = None
+
+
+class FileMaps:
+    """A flight's heat-map files as the kernels read them (``tf_files_new``): each mapped
+    read-only, the kernels noting every page they read; when a kernel is done with a
+    keyframe that read a page for the first time, the pages the system mapped round it
+    (64 kB at a time on Linux) that nothing read are dropped again (they stay in the page
+    cache). A fit reads a quarter to a third of the pages of a flight (the bands round the
+    projected model), so the process holds that much, where plain memory maps would hold
+    every page of every file.
+
+    Args:
+        fds: an open descriptor of each keyframe's file (mapped here: the caller closes
+            them).
+        offsets: where each file's values start.
+        shape: (7, H, W) of each keyframe's array; ``half``: float16, else float32.
+
+    :meth:`read` gives a keyframe's whole array, :meth:`check` checks every value once.
+
+    Raises:
+        OSError: if a file cannot be mapped.
+    """
+
+    def __init__(self, fds: list[int], offsets: list[int], shape: tuple[int, int, int],
+                 half: bool) -> None:
+        assert _LIB is not None
+        self.shape = shape
+        self.half = bool(half)
+        self.dtype = np.dtype("<f2" if half else "<f4")
+        self.grid: NDArray[np.floating] | None = None
+        self._n = len(fds)
+        ctypes.set_errno(0)
+        handle = _LIB.tf_files_new(len(fds), _c(fds, np.int64), _c(offsets, np.int64),
+                                   int(np.prod(shape)), int(half))
+        if not handle:
+            code = ctypes.get_errno() or 12  # ENOMEM
+            raise OSError(code, os.strerror(code))
+        self.handle: int = handle
+        self._finalizer = weakref.finalize(self, _LIB.tf_files_free, handle)
+
+    def __len__(self) -> int:
+        return self._n
+
+    def read(self, k: int) -> NDArray[np.floating]:
+        """Keyframe ``k``'s (7, H, W) array (a read-only copy of its own, as read-only as a
+        memory map of the file)."""
+        assert _LIB is not None
+        out = np.empty(self.shape, dtype=self.dtype)
+        _LIB.tf_files_read(self.handle, int(k), out.ctypes.data)
+        out.flags.writeable = False
+        return out
+
+    def check(self, lo: float, hi: float, rows: NDArray[np.int_], step: int) -> int:
+        """The first keyframe holding a NaN or a value outside [``lo``, ``hi``] (compared
+        in float32), or ``len(self)`` if none: every value read once on all threads
+        (``tf_files_check``; its numpy twin is
+        :func:`turbinefit.io.heatmap_files.check_heatmap_values` of :meth:`read` in turn).
+        Keeps :attr:`grid`, the values of ``rows`` of each channel at every ``step``-th
+        column (N, 7, len(rows), ceil(W / step)), those of
+        :meth:`turbinefit.heatmaps.HeatmapStack.coarse_grid`."""
+        assert _LIB is not None
+        _, H, W = self.shape
+        r = _c(rows, np.int64)
+        grid = np.empty((self._n, self.shape[0], len(r), -(-W // step)), dtype=self.dtype)
+        bad = int(_run(_LIB.tf_files_check, self.handle, float(lo), float(hi), H, W, r,
+                       len(r), int(step), grid.ctypes.data))
+        self.grid = grid if bad == self._n else None
+        return bad
+
+    def used_bytes(self) -> int:
+        """Bytes of the pages the kernels read so far: what the process holds of the
+        files."""
+        assert _LIB is not None
+        return int(_LIB.tf_files_used(self.handle))
+
+
+def files_supported() -> bool:
+    """Whether the kernels can map heat-map files themselves (:class:`FileMaps`): they
+    are :func:`available`, on a POSIX system."""
+    return available() and os.name == "posix"
 
 
 def _run(kernel: Any, *args: Any) -> Any:
@@ -132,7 +236,7 @@ def _opt(a: NDArray[Any] | None) -> int | None:
 def image_terms(
     poses: FloatArray, camera_params: FloatArray, width: int, height: int,
     A: FloatArray, B: FloatArray, JA: FloatArray | None, JB: FloatArray | None,
-    frac: FloatArray | None, channels: NDArray[np.int_], maps: NDArray[np.uint64], half: bool,
+    frac: FloatArray | None, channels: NDArray[np.int_], maps: NativeMaps,
     keyframes: NDArray[np.int_], kind: str, target: FloatArray | None,
     found: NDArray[np.bool_] | None, normal: FloatArray | None, lam: float,
     pixel_sigma: float, margin: float, floor: float, robust: str, robust_scale: float,
@@ -142,9 +246,10 @@ def image_terms(
 
     Points are ``(1 - f) A + f B`` with ``f = frac`` (N, M) (None: f = 0), their theta
     Jacobians ``(1 - f) JA + f JB`` (M, 3, 7). Adds ``J^T H J`` and ``J^T g`` into ``JtHJ``
-    (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: each keyframe's heat-maps' address,
-    float32 or (``half``) float16. Returns the per-keyframe cost (N,) and the
-    points in view (N,); raises NonFiniteHeatmapError on a NaN or inf heat-map value."""
+    (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: the stack's
+    :meth:`~turbinefit.heatmaps.HeatmapStack.native_maps`. Returns the per-keyframe cost
+    (N,) and the points in view (N,); raises NonFiniteHeatmapError on a NaN or inf
+    heat-map value."""
     assert _LIB is not None
     N, M = poses.shape[0], A.shape[0]
     cost = np.zeros(N)
@@ -159,7 +264,7 @@ def image_terms(
     bad = _run(_LIB.tf_image_terms,
         N, M, _c(poses, np.float64), _c(camera_params, np.float64), width, height,
         _c(A, np.float64), _c(B, np.float64), _opt(JAc), _opt(JBc), _opt(fr), M,
-        _c(channels, np.int64), maps, int(half), _c(keyframes, np.int64),
+        _c(channels, np.int64), maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
         0 if kind == "interp" else 1,
         _opt(tg), _opt(fd), _opt(nm), par, int(with_jacobian),
         None if JtHJ is None else JtHJ.ctypes.data, None if g is None else g.ctypes.data,
@@ -183,7 +288,7 @@ def project(poses: FloatArray, camera_params: FloatArray, width: int, height: in
 
 
 def point_search(
-    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NativeMaps, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, usable: NDArray[np.bool_], radius: int,
     coarse: NDArray[np.int64], fine: NDArray[np.int64], step: int, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -194,15 +299,16 @@ def point_search(
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _run(_LIB.tf_point_search_scaled,
-        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
-        _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
+        N, M, width, height, maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
+        _c(channels, np.int64), _c(uv, np.float64), _c(usable, np.uint8), radius,
+        _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
     _check(int(bad), keyframes)
     return target, found.astype(bool)
 
 
 def line_search(
-    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NativeMaps, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, normal: FloatArray,
     usable: NDArray[np.bool_], half_length: int, step: float, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -213,8 +319,9 @@ def line_search(
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _run(_LIB.tf_line_search_scaled,
-        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
-        _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
+        N, M, width, height, maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
+        _c(channels, np.int64), _c(uv, np.float64), _c(normal, np.float64),
+        _c(usable, np.uint8), half_length,
         step, threshold, target, found)
     _check(int(bad), keyframes)
     return target, found.astype(bool)
