@@ -181,23 +181,30 @@ typedef struct {
 
 TF_EXPORT void tf_files_free(void *handle);
 
-/* Drop the pages of keyframe k that no kernel read (all of them if `all`). */
-static void files_drop(TfFiles *fl, int64_t k, int all) {
+/* Runs of unread pages shorter than this many bytes stay mapped: the kernel's fault-around
+ * (64 kB) maps such a gap back with its next read nearby, and each drop is a system call
+ * (and a TLB flush on every thread's processor). A 1000-keyframe fit then holds a few
+ * tens of per cent more than the pages it reads, with a third of the calls. */
+#define TRIM_MIN_BYTES ((int64_t)64 << 10)
+
+/* Drop the pages of keyframe k that no kernel read. */
+static void files_drop(TfFiles *fl, int64_t k) {
 #ifdef TF_HAVE_MMAP
     const uint8_t *used = fl->used + k * fl->npages;
     const int64_t pages = (int64_t)((fl->length[k] + ((size_t)1 << fl->page_shift) - 1)
                                     >> fl->page_shift);
+    const int64_t min_run = TRIM_MIN_BYTES >> fl->page_shift;
     int64_t p = 0;
     while (p < pages) {
-        while (p < pages && !all && LOAD_U8(used + p)) p++;
+        while (p < pages && LOAD_U8(used + p)) p++;
         const int64_t start = p;
-        while (p < pages && (all || !LOAD_U8(used + p))) p++;
-        if (p > start)
+        while (p < pages && !LOAD_U8(used + p)) p++;
+        if (p > start && p - start >= min_run)
             madvise(fl->base[k] + (start << fl->page_shift),
                     (size_t)((p - start) << fl->page_shift), MADV_DONTNEED);
     }
 #else
-    (void)fl; (void)k; (void)all;
+    (void)fl; (void)k;
 #endif
 }
 
@@ -207,7 +214,7 @@ static void files_trim(const void *files, uint64_t k) {
     TfFiles *fl = (TfFiles *)files;
     if (fl == NULL || !fl->dirty[k]) return;
     fl->dirty[k] = 0;
-    files_drop(fl, (int64_t)k, 0);
+    files_drop(fl, (int64_t)k);
 }
 
 /* Map N keyframes' heat-map files (descriptors fds, which the caller may close at once;
@@ -283,12 +290,13 @@ TF_EXPORT int64_t tf_files_used(const void *handle) {
 TF_EXPORT void tf_files_read(void *handle, int64_t k, void *out) {
     TfFiles *fl = (TfFiles *)handle;
     memcpy(out, fl->base[k] + fl->offset[k], (size_t)(fl->count * fl->itemsize));
-    files_drop(fl, k, 0);
+    files_drop(fl, k);
 }
 
 /* One channel plane of a keyframe's heat-maps, stored as float32 or float16 (the maps of
  * a flight share one storage; float16 values are read through half_value); with files,
- * the kernels note the rows they are about to read (mark_rows). */
+ * the kernels note the values they read (mark, exactly: a page noted but not read would
+ * not be let go if a later read of it mapped its neighbours). */
 typedef struct {
     const float *f;
     const uint16_t *h;
@@ -314,28 +322,17 @@ static inline Plane plane_at(uint64_t addr, int64_t half, const void *files, siz
     return p;
 }
 
-/* Note that rows r0..r1 (clamped to 0..H-1) of a plane W values wide are about to be read
- * (files only): their pages are then kept. */
-static inline void mark_rows(Plane p, int r0, int r1, int W, int H) {
+/* Note that values i0..i1 (one run, i0 <= i1) of a plane are read (files only): their
+ * pages are then kept. */
+static inline void mark(Plane p, size_t i0, size_t i1) {
     if (p.used == NULL) return;
-    r0 = clampi(r0, 0, H - 1);
-    r1 = clampi(r1, 0, H - 1);
-    const size_t row = (size_t)W * (size_t)p.isz;
-    const size_t a = (p.first + (size_t)r0 * row) >> p.page_shift;
-    const size_t b = (p.first + (size_t)(r1 + 1) * row - 1) >> p.page_shift;
+    const size_t a = (p.first + i0 * (size_t)p.isz) >> p.page_shift;
+    const size_t b = (p.first + i1 * (size_t)p.isz + (size_t)p.isz - 1) >> p.page_shift;
     for (size_t q = a; q <= b; q++)
         if (!LOAD_U8(p.used + q)) {
             STORE_U8(p.used + q, 1);
             *p.dirty = 1;
         }
-}
-
-/* mark_rows of the rows from floor(v0) to floor(v1) + 1 (v0 <= v1; any double). */
-static inline void mark_span(Plane p, double v0, double v1, int W, int H) {
-    if (p.used == NULL) return;
-    const double top = H - 1;
-    mark_rows(p, (int)fmax(fmin(floor(v0), top), 0.0), (int)fmax(fmin(floor(v1) + 1.0, top), 0.0),
-              W, H);
 }
 
 /* Value i of a plane. */
@@ -354,13 +351,13 @@ static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
     cr_weights(u - u0, wu, dwu, d2wu);
     cr_weights(v - v0, wv, dwv, d2wv);
     int iu = (int)u0, iv = (int)v0;
-    mark_rows(plane, iv - 1, iv + 2, W, H);
     int cols[4];
     for (int j = 0; j < 4; j++) cols[j] = clampi(iu - 1 + j, 0, W - 1);
     double val = 0, gu = 0, gv = 0, huu = 0, huv = 0, hvv = 0;
     int bad = 0;
     for (int i = 0; i < 4; i++) {
         const size_t row = (size_t)clampi(iv - 1 + i, 0, H - 1) * W;
+        mark(plane, row + cols[0], row + cols[3]);
         double pu = 0, pdu = 0, pd2u = 0;
         for (int j = 0; j < 4; j++) {
             double p = at(plane, row + cols[j]);
@@ -623,6 +620,7 @@ static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *
         int du = cu - cu0, dv = cv - cv0;
         int ok = cu >= 0 && cu < W && cv >= 0 && cv < H && (int64_t)du * du + (int64_t)dv * dv <= R * R;
         int u = clampi(cu, 0, W - 1), v = clampi(cv, 0, H - 1);
+        mark(pl, (size_t)v * W + u, (size_t)v * W + u);
         double val = at(pl, (size_t)v * W + u);
         if (!isfinite(val)) *bad = 1;
         if (!ok) val = -1.0;
@@ -656,22 +654,23 @@ TF_EXPORT int64_t tf_point_search_scaled(
             int bu, bv, fu, fv;
             double peak;
             if (use) {
-                /* every row read: the disc, the fine square round its best, the neighbours */
-                mark_rows(pl, cv0 - (int)R - 3 * s, cv0 + (int)R + 3 * s, W, H);
                 window_max(pl, W, H, cu0, cv0, coarse, K1, cu0, cv0, R, &bu, &bv, &bad);
                 peak = window_max(pl, W, H, bu, bv, fine, K2, cu0, cv0, R, &fu, &fv, &bad);
             } else {
                 peak = -1.0;
                 fu = clampi(cu0 + (int)coarse[0], 0, W - 1);
                 fv = clampi(cv0 + (int)coarse[1], 0, H - 1);
-                mark_rows(pl, fv - s, fv + s, W, H);
             }
             int inner = fu >= s && fu <= W - 1 - s && fv >= s && fv <= H - 1 - s;
             found[i] = use && peak >= threshold && inner;
-            double n0 = at(pl, (size_t)fv * W + clampi(fu - s, 0, W - 1));
-            double n1 = at(pl, (size_t)fv * W + clampi(fu + s, 0, W - 1));
-            double n2 = at(pl, (size_t)clampi(fv - s, 0, H - 1) * W + fu);
-            double n3 = at(pl, (size_t)clampi(fv + s, 0, H - 1) * W + fu);
+            const size_t i0 = (size_t)fv * W + clampi(fu - s, 0, W - 1);
+            const size_t i1 = (size_t)fv * W + clampi(fu + s, 0, W - 1);
+            const size_t i2 = (size_t)clampi(fv - s, 0, H - 1) * W + fu;
+            const size_t i3 = (size_t)clampi(fv + s, 0, H - 1) * W + fu;
+            mark(pl, i0, i1);
+            mark(pl, i2, i2);
+            mark(pl, i3, i3);
+            double n0 = at(pl, i0), n1 = at(pl, i1), n2 = at(pl, i2), n3 = at(pl, i3);
             if (!(isfinite(n0) && isfinite(n1) && isfinite(n2) && isfinite(n3))) bad = 1;
             target[2 * i] = fu + s * peak_offset(n0, peak, n1);
             target[2 * i + 1] = fv + s * peak_offset(n2, peak, n3);
@@ -688,6 +687,8 @@ static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, in
     int iu = clampi((int)floor(pu), 0, W - 2), iv = clampi((int)floor(pv), 0, H - 2);
     double fu = fmin(fmax(pu - iu, 0.0), 1.0), fv = fmin(fmax(pv - iv, 0.0), 1.0);
     const size_t r0 = (size_t)iv * W + iu;
+    mark(pl, r0, r0 + 1);
+    mark(pl, r0 + W, r0 + W + 1);
     double t00 = at(pl, r0), t01 = at(pl, r0 + 1), t10 = at(pl, r0 + W), t11 = at(pl, r0 + W + 1);
     if (!(isfinite(t00) && isfinite(t01) && isfinite(t10) && isfinite(t11))) *bad = 1;
     if (!ok) return -1.0;
@@ -717,8 +718,6 @@ TF_EXPORT int64_t tf_line_search_scaled(
             int use = usable[i];
             double u0 = uv[2 * i], v0 = uv[2 * i + 1];
             double nu = normal[2 * i], nv = normal[2 * i + 1];
-            const double reach = (double)(L + 1) * step * fabs(nv); /* the fine samples' too */
-            mark_span(pl, v0 - reach, v0 + reach, W, H);
             double best = -INFINITY, v_cm = -1.0, v_cp = -1.0, prev = -1.0;
             int64_t kc = 0;
             int after = 0;
@@ -966,7 +965,7 @@ TF_EXPORT int64_t tf_files_check(void *handle, double lo, double hi, int64_t H, 
                         memcpy(g, row + j * step * isz, (size_t)isz);
                 }
         }
-        files_drop(fl, n, 0);
+        files_drop(fl, n);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? N : first_bad;

@@ -240,7 +240,7 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
     except BaseException:
         _close([fd for fd, _, _ in opened])
         raise
-    if use_files:
+    if use_files and opened:
         try:
             files = _native.FileMaps([fd for fd, _, _ in opened], [o for _, o, _ in opened],
                                      shape, opened[0][2] == _HALF_DTYPE)
