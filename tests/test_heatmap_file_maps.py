@@ -128,3 +128,46 @@ def test_a_fit_holds_only_the_pages_it_reads(tmp_path: Path) -> None:
     # a keyframe read whole (a plot, init) is let go again
     np.testing.assert_array_equal(flight.heatmaps[7], np.load(folder / "heatmaps" / "7.000000.npy"))
     assert _mapped_kb(folder / "heatmaps") <= mapped_kb
+
+
+def test_values_checked_on_first_read(tmp_path: Path) -> None:
+    """Maps read with ``check="first read"``: the solver's first search checks every
+    keyframe it reads (no pass of its own), a value out of range stops it naming the first
+    bad file, and ``check()`` covers those nothing read."""
+    from turbinefit.heatmaps import HeatmapValueError
+    from turbinefit.io.flight_folder import read_flight_folder
+    from turbinefit.io.heatmap_files import value_error
+
+    folder = tmp_path / "flight"
+    write_flight(simulate_flight(SimConfig(n_keyframes=12, seed=3)), folder)
+    flight_folder = read_flight_folder(folder)
+    stack = flight_folder.read_heatmaps(check="first read")
+    files = stack.files
+    assert files is not None and not any(files.checked(k) for k in range(12))
+    flight = flight_folder.flight(stack)
+    fit(flight, FitConfig(**FILE_FIT_DEFAULTS))
+    assert all(files.checked(k) for k in range(12)) and files.first_bad() == 12
+    stack.check()  # nothing left
+    np.testing.assert_array_equal(
+        stack.coarse_grid(np.arange(12)),
+        read_flight(folder).heatmaps.coarse_grid(np.arange(12)))
+
+    for k, value in ((7, 1.5), (4, np.nan)):
+        path = folder / "heatmaps" / f"{k}.000000.npy"
+        maps = np.load(path)
+        maps[3, 5, 6] = value
+        np.save(path, maps)
+    stack = read_flight_folder(folder).read_heatmaps(check="first read")
+    with pytest.raises(HeatmapValueError) as info:
+        fit(flight_folder.flight(stack), FitConfig(**FILE_FIT_DEFAULTS))
+    assert info.value.keyframe == 4
+    assert "NaN" in str(value_error(stack, 4, folder / "heatmaps" / "4.000000.npy"))
+    stack = read_flight_folder(folder).read_heatmaps(check="first read")
+    stack[0]
+    for k in (7, 4, 7):  # each bad keyframe read raises, whichever was found first
+        with pytest.raises(HeatmapValueError) as info:
+            stack[k]
+        assert info.value.keyframe == k
+    with pytest.raises(HeatmapValueError) as info:
+        stack.check()
+    assert info.value.keyframe == 4

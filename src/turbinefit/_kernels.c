@@ -148,6 +148,55 @@ static inline float half_value(uint16_t h) {
     return o.f;
 }
 
+/* ---- the value check of heat-maps --------------------------------------------------- */
+
+/* The values a heat-map may hold, [lo, hi] in float32, and for float16 the magnitudes (15
+ * bits) in range for each sign, [a0, b0] and [a1, b1] (empty if a > b): a half's value
+ * grows with its magnitude bits, and NaNs (above 0x7c00) lie beyond every range, so the
+ * check of float16 compares integers. */
+typedef struct {
+    float lo, hi;
+    int16_t a0, b0, a1, b1;
+} ValueRange;
+
+static ValueRange value_range(double lo, double hi, int64_t half) {
+    ValueRange r;
+    r.lo = (float)lo;
+    r.hi = (float)hi;
+    r.a0 = 0x7fff; r.b0 = 0; r.a1 = 0x7fff; r.b1 = 0; /* empty unless found below */
+    for (int16_t m = 0; half && m <= 0x7c00; m++) {
+        const float v = half_value((uint16_t)m);
+        if (v >= r.lo && v <= r.hi) { if (r.a0 > m) r.a0 = m; r.b0 = m; }
+        if (-v >= r.lo && -v <= r.hi) { if (r.a1 > m) r.a1 = m; r.b1 = m; }
+    }
+    return r;
+}
+
+/* Whether `count` values at p (float16 if half) hold a NaN or a value outside r. */
+static int out_of_range(const void *p, int64_t half, int64_t count, const ValueRange *r) {
+    if (half) {
+        const uint16_t *q = (const uint16_t *)p;
+        const int16_t a0 = r->a0, b0 = r->b0, a1 = r->a1, b1 = r->b1;
+        int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
+        for (int64_t i = 0; i < count; i++) {
+            const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
+            const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
+            const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
+            const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
+            acc |= (int16_t)((m < lo_m) | (m > hi_m));
+        }
+        return acc != 0;
+    }
+    const float *f = (const float *)p;
+    const float flo = r->lo, fhi = r->hi;
+    int bad = 0;
+    for (int64_t i = 0; i < count; i++) {
+        const float v = f[i];
+        bad |= !(v >= flo) | !(v <= fhi);
+    }
+    return bad;
+}
+
 /* ---- heat-map files, mapped, holding only the pages read ----------------------------
  *
  * A flight's heat-map files are mapped read-only, one mapping per keyframe, and the
@@ -165,9 +214,19 @@ static inline float half_value(uint16_t h) {
 #ifdef _MSC_VER
 #define LOAD_U8(p) (*(volatile uint8_t *)(p))
 #define STORE_U8(p, v) (*(volatile uint8_t *)(p) = (v))
+#define LOAD_I64(p) (*(volatile int64_t *)(p))
+static int cas_i64(int64_t *p, int64_t *expected, int64_t v) {
+    if (*p != *expected) { *expected = *p; return 0; }
+    *p = v;
+    return 1;
+}
+#define CAS_I64(p, e, v) cas_i64((p), (e), (v))
 #else
 #define LOAD_U8(p) __atomic_load_n((p), __ATOMIC_RELAXED)
 #define STORE_U8(p, v) __atomic_store_n((p), (v), __ATOMIC_RELAXED)
+#define LOAD_I64(p) __atomic_load_n((p), __ATOMIC_ACQUIRE)
+#define CAS_I64(p, e, v) \
+    __atomic_compare_exchange_n((p), (e), (v), 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)
 #endif
 
 typedef struct {
@@ -177,6 +236,13 @@ typedef struct {
     int64_t *offset;      /* per keyframe: where its values start */
     uint8_t *used;        /* n * npages: pages a kernel read */
     uint8_t *dirty;       /* n: a page read for the first time since the last trim */
+    /* the value check (tf_files_check_setup) */
+    uint8_t *checked;     /* n: 1 once the keyframe's values were checked, 2 if bad */
+    int64_t first_bad;    /* the first keyframe found out of range (n if none) */
+    ValueRange range;
+    int64_t height, width, nrows, ncols, step, channels, on_first_read;
+    int64_t *rows;        /* the coarse grid's rows */
+    char *grid;           /* n * channels * nrows * ncols values: the coarse grid */
 } TfFiles;
 
 TF_EXPORT void tf_files_free(void *handle);
@@ -206,6 +272,37 @@ static void files_drop(TfFiles *fl, int64_t k) {
 #else
     (void)fl; (void)k;
 #endif
+}
+
+/* Check keyframe k's values (reading them all through its mapping) and keep its coarse
+ * grid; a keyframe out of range lowers first_bad. Its pages stay mapped (dirty: the
+ * caller drops what it does not read). */
+static void check_keyframe(TfFiles *fl, int64_t k) {
+    const char *buf = fl->base[k] + fl->offset[k];
+    const int64_t isz = fl->itemsize, H = fl->height, W = fl->width;
+    const int bad = out_of_range(buf, fl->half, fl->count, &fl->range);
+    if (bad) {
+        int64_t cur = LOAD_I64(&fl->first_bad);
+        while (k < cur && !CAS_I64(&fl->first_bad, &cur, k)) {}
+    } else if (fl->grid != NULL) {
+        char *g = fl->grid + k * fl->channels * fl->nrows * fl->ncols * isz;
+        for (int64_t c = 0; c < fl->channels; c++)
+            for (int64_t i = 0; i < fl->nrows; i++) {
+                const char *row = buf + ((c * H + fl->rows[i]) * W) * isz;
+                for (int64_t j = 0; j < fl->ncols; j++, g += isz)
+                    memcpy(g, row + j * fl->step * isz, (size_t)isz);
+            }
+    }
+    STORE_U8(fl->checked + k, bad ? 2 : 1);
+    fl->dirty[k] = 1;
+}
+
+/* Before a kernel reads keyframe k: with the check on first read, check it now (the same
+ * pass brings in the pages the kernel reads next). */
+static inline void files_touch(const void *files, uint64_t k) {
+    TfFiles *fl = (TfFiles *)files;
+    if (fl != NULL && fl->on_first_read && !LOAD_U8(fl->checked + k))
+        check_keyframe(fl, (int64_t)k);
 }
 
 /* After a kernel is done with keyframe k (its index among the files): drop the pages
@@ -241,13 +338,15 @@ TF_EXPORT void *tf_files_new(int64_t n, const int64_t *fds, const int64_t *offse
     fl->length = (size_t *)calloc(m, sizeof(size_t));
     fl->offset = (int64_t *)calloc(m, sizeof(int64_t));
     fl->dirty = (uint8_t *)calloc(m, 1);
+    fl->checked = (uint8_t *)calloc(m, 1);
+    fl->first_bad = n;
     int64_t most = 0;
     for (int64_t k = 0; k < n; k++)
         if (offsets[k] > most) most = offsets[k];
     fl->npages = (most + count * fl->itemsize + ((int64_t)1 << fl->page_shift) - 1)
                  >> fl->page_shift;
     fl->used = (uint8_t *)calloc(m * (size_t)fl->npages, 1);
-    int ok = fl->base && fl->length && fl->offset && fl->dirty && fl->used;
+    int ok = fl->base && fl->length && fl->offset && fl->dirty && fl->used && fl->checked;
     for (int64_t k = 0; ok && k < n; k++) {
         fl->offset[k] = offsets[k];
         fl->length[k] = (size_t)(offsets[k] + count * fl->itemsize);
@@ -274,7 +373,7 @@ TF_EXPORT void tf_files_free(void *handle) {
         if (fl->base[k] != NULL) munmap(fl->base[k], fl->length[k]);
 #endif
     free(fl->base); free(fl->length); free(fl->offset); free(fl->used); free(fl->dirty);
-    free(fl);
+    free(fl->checked); free(fl->rows); free(fl);
 }
 
 /* Pages the kernels read so far (the bytes the process holds of the files). */
@@ -286,10 +385,12 @@ TF_EXPORT int64_t tf_files_used(const void *handle) {
 }
 
 /* Copy keyframe k's values into out (count values), holding no page of it but those the
- * kernels read. */
+ * kernels read; with the check on first read, checked first. */
 TF_EXPORT void tf_files_read(void *handle, int64_t k, void *out) {
     TfFiles *fl = (TfFiles *)handle;
+    files_touch(fl, (uint64_t)k);
     memcpy(out, fl->base[k] + fl->offset[k], (size_t)(fl->count * fl->itemsize));
+    fl->dirty[k] = 0;
     files_drop(fl, k);
 }
 
@@ -457,12 +558,13 @@ TF_EXPORT int64_t tf_image_terms(
     const size_t plane = (size_t)W * H;
     int64_t first_bad = INT64_MAX;
 
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         double R[9];
         quat_to_R(poses + 7 * n, R);
         const double *t = poses + 7 * n + 4;
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         double acc[NCOL * NCOL];
         double gacc[NCOL];
         memset(acc, 0, sizeof acc);
@@ -642,9 +744,10 @@ TF_EXPORT int64_t tf_point_search_scaled(
     const int W = (int)width, H = (int)height, s = (int)step;
     const size_t plane = (size_t)W * H;
     int64_t first_bad = INT64_MAX;
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
@@ -708,9 +811,10 @@ TF_EXPORT int64_t tf_line_search_scaled(
     const size_t plane = (size_t)W * H;
     const int64_t K = L + 1; /* coarse samples at -L, -L + 2, ..., L */
     int64_t first_bad = INT64_MAX;
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
@@ -874,53 +978,6 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
     return 0;
 }
 
-/* The values a heat-map may hold, [lo, hi] in float32, and for float16 the magnitudes (15
- * bits) in range for each sign, [a0, b0] and [a1, b1] (empty if a > b): a half's value
- * grows with its magnitude bits, and NaNs (above 0x7c00) lie beyond every range, so the
- * check of float16 compares integers. */
-typedef struct {
-    float lo, hi;
-    int16_t a0, b0, a1, b1;
-} ValueRange;
-
-static ValueRange value_range(double lo, double hi, int64_t half) {
-    ValueRange r;
-    r.lo = (float)lo;
-    r.hi = (float)hi;
-    r.a0 = 0x7fff; r.b0 = 0; r.a1 = 0x7fff; r.b1 = 0; /* empty unless found below */
-    for (int16_t m = 0; half && m <= 0x7c00; m++) {
-        const float v = half_value((uint16_t)m);
-        if (v >= r.lo && v <= r.hi) { if (r.a0 > m) r.a0 = m; r.b0 = m; }
-        if (-v >= r.lo && -v <= r.hi) { if (r.a1 > m) r.a1 = m; r.b1 = m; }
-    }
-    return r;
-}
-
-/* Whether `count` values at p (float16 if half) hold a NaN or a value outside r. */
-static int out_of_range(const void *p, int64_t half, int64_t count, const ValueRange *r) {
-    if (half) {
-        const uint16_t *q = (const uint16_t *)p;
-        const int16_t a0 = r->a0, b0 = r->b0, a1 = r->a1, b1 = r->b1;
-        int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
-        for (int64_t i = 0; i < count; i++) {
-            const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
-            const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
-            const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
-            const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
-            acc |= (int16_t)((m < lo_m) | (m > hi_m));
-        }
-        return acc != 0;
-    }
-    const float *f = (const float *)p;
-    const float flo = r->lo, fhi = r->hi;
-    int bad = 0;
-    for (int64_t i = 0; i < count; i++) {
-        const float v = f[i];
-        bad |= !(v >= flo) | !(v <= fhi);
-    }
-    return bad;
-}
-
 /* Value check of heat-map arrays: the first of N keyframes (float32 arrays, or float16 if
  * `half`, of `count` values at the addresses `maps`) holding a value outside [lo, hi] or a
  * NaN, or N if none. One pass over the data on all threads (the caller names the file and
@@ -937,38 +994,53 @@ TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t
     return first_bad == INT64_MAX ? N : first_bad;
 }
 
-/* Value check of heat-map files, as tf_first_out_of_range: every keyframe read once on all
- * threads through its mapping, and its pages dropped once it is checked (so that the
- * process holds a few at a time); the first keyframe holding a NaN or a value outside
- * [lo, hi], or N if none. With `grid` (N, channels, nrows, ncols values of the storage):
- * it also keeps the values of rows `rows` (nrows) of each channel at every `step`-th of
- * the W columns (ncols = ceil(W / step)): the coarse grid of HeatmapStack.coarse_grid. */
-TF_EXPORT int64_t tf_files_check(void *handle, double lo, double hi, int64_t H, int64_t W,
-                                 const int64_t *rows, int64_t nrows, int64_t step,
-                                 void *grid) {
+/* How the files' values are checked: [lo, hi] as tf_first_out_of_range, the coarse grid of
+ * HeatmapStack.coarse_grid kept in `grid` (n, channels, nrows, ncols values of the
+ * storage: rows `rows` of each channel of H x W at every `step`-th column, ncols =
+ * ceil(W / step)), and with `on_first_read` each keyframe checked when a kernel or
+ * tf_files_read first reads it (the rest by tf_files_check). Returns 0, or ENOMEM. */
+TF_EXPORT int64_t tf_files_check_setup(void *handle, double lo, double hi, int64_t H,
+                                       int64_t W, const int64_t *rows, int64_t nrows,
+                                       int64_t step, void *grid, int64_t on_first_read) {
     TfFiles *fl = (TfFiles *)handle;
-    const ValueRange r = value_range(lo, hi, fl->half);
-    const int64_t N = fl->n, isz = fl->itemsize;
-    const int64_t ncols = (W + step - 1) / step;
-    const int64_t channels = fl->count / (H * W);
-    int64_t first_bad = INT64_MAX;
-#pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
-    for (int64_t n = 0; n < N; n++) {
-        const char *buf = fl->base[n] + fl->offset[n];
-        int bad = out_of_range(buf, fl->half, fl->count, &r);
-        if (!bad && grid != NULL) {
-            char *g = (char *)grid + n * channels * nrows * ncols * isz;
-            for (int64_t c = 0; c < channels; c++)
-                for (int64_t i = 0; i < nrows; i++) {
-                    const char *row = buf + ((c * H + rows[i]) * W) * isz;
-                    for (int64_t j = 0; j < ncols; j++, g += isz)
-                        memcpy(g, row + j * step * isz, (size_t)isz);
-                }
-        }
+    fl->range = value_range(lo, hi, fl->half);
+    fl->height = H;
+    fl->width = W;
+    fl->nrows = nrows;
+    fl->step = step;
+    fl->ncols = (W + step - 1) / step;
+    fl->channels = fl->count / (H * W);
+    fl->rows = (int64_t *)malloc((size_t)(nrows > 0 ? nrows : 1) * sizeof(int64_t));
+    if (fl->rows == NULL) return ENOMEM;
+    memcpy(fl->rows, rows, (size_t)nrows * sizeof(int64_t));
+    fl->grid = (char *)grid;
+    fl->on_first_read = on_first_read;
+    return 0;
+}
+
+/* Check every keyframe not checked yet, on all threads, each file's pages dropped once it
+ * is checked (so that the process holds a few at a time). Returns the first keyframe of
+ * all found holding a NaN or a value outside the range, or n if none. */
+TF_EXPORT int64_t tf_files_check(void *handle) {
+    TfFiles *fl = (TfFiles *)handle;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int64_t n = 0; n < fl->n; n++) {
+        if (LOAD_U8(fl->checked + n)) continue;
+        check_keyframe(fl, n);
+        fl->dirty[n] = 0;
         files_drop(fl, n);
-        if (bad && n < first_bad) first_bad = n;
     }
-    return first_bad == INT64_MAX ? N : first_bad;
+    return LOAD_I64(&fl->first_bad);
+}
+
+/* The first keyframe found out of range so far, or n if none. */
+TF_EXPORT int64_t tf_files_first_bad(const void *handle) {
+    return LOAD_I64(&((const TfFiles *)handle)->first_bad);
+}
+
+/* Keyframe k's check: 0 not yet, 1 in range, 2 out of range. */
+TF_EXPORT int64_t tf_files_checked(const void *handle, int64_t k) {
+    return LOAD_U8(((const TfFiles *)handle)->checked + k);
 }
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import interrupt_within
-from turbinefit.heatmaps import NonFiniteHeatmapError
+from turbinefit.heatmaps import HeatmapValueError, NonFiniteHeatmapError
 
 FloatArray = NDArray[np.float64]
 
@@ -85,8 +85,15 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_files_used.argtypes = [_ptr]
     lib.tf_files_read.restype = None
     lib.tf_files_read.argtypes = [_ptr, _int, _ptr]
+    lib.tf_files_check_setup.restype = _int
+    lib.tf_files_check_setup.argtypes = [_ptr, _dbl, _dbl, _int, _int, _i64, _int, _int, _ptr,
+                                         _int]
     lib.tf_files_check.restype = _int
-    lib.tf_files_check.argtypes = [_ptr, _dbl, _dbl, _int, _int, _i64, _int, _int, _ptr]
+    lib.tf_files_check.argtypes = [_ptr]
+    lib.tf_files_first_bad.restype = _int
+    lib.tf_files_first_bad.argtypes = [_ptr]
+    lib.tf_files_checked.restype = _int
+    lib.tf_files_checked.argtypes = [_ptr, _int]
 
 
 _LIB = _load()
@@ -119,21 +126,32 @@ class NativeMaps(NamedTuple):
     """How the kernels reach a stack's heat-maps
     (:meth:`turbinefit.heatmaps.HeatmapStack.native_maps`): per keyframe, the address of
     its (7, H, W) array in memory or, with ``files`` (a :class:`FileMaps` handle), its index
-    among the files; float16 if ``half``, else float32."""
+    among the ``n_files`` files; float16 if ``half``, else float32."""
 
     maps: NDArray[np.uint64]
     half: bool
     files: int | None = None
+    n_files: int = 0
 
 
 class FileMaps:
     """A flight's heat-map files as the kernels read them (``tf_files_new``): each mapped
-    read-only, the kernels noting every page they read; when a kernel is done with a
+    read-only, the kernels noting every value they read; when a kernel is done with a
     keyframe that read a page for the first time, the pages the system mapped round it
     (64 kB at a time on Linux) that nothing read are dropped again (they stay in the page
     cache). A fit reads a quarter to a third of the pages of a flight (the bands round the
-    projected model), so the process holds that much, where plain memory maps would hold
-    every page of every file.
+    projected model), so the process holds about that much, where plain memory maps would
+    hold every page of every file.
+
+    Every value is checked once to lie in [``lo``, ``hi``] (compared in float32; NaN is
+    out): by :meth:`check`, or with ``on_first_read`` the first time a kernel or
+    :meth:`read` reads the keyframe (in the same pass as that read: the check brings in
+    the pages the kernel reads next), :meth:`check` doing the rest. A keyframe out of range
+    makes the kernels' callers raise :class:`~turbinefit.heatmaps.HeatmapValueError`
+    (:func:`_check`), and :meth:`read` too; :meth:`first_bad` names it. The check keeps
+    :attr:`grid`, the values of ``rows`` of each channel at every ``step``-th column
+    (N, 7, len(rows), ceil(W / step)), those of
+    :meth:`turbinefit.heatmaps.HeatmapStack.coarse_grid`.
 
     Args:
         fds: an open descriptor of each keyframe's file (mapped here: the caller closes
@@ -141,20 +159,22 @@ class FileMaps:
         offsets: where each file's values start.
         shape: (7, H, W) of each keyframe's array; ``half``: float16, else float32.
 
-    :meth:`read` gives a keyframe's whole array, :meth:`check` checks every value once.
-
     Raises:
         OSError: if a file cannot be mapped.
     """
 
     def __init__(self, fds: list[int], offsets: list[int], shape: tuple[int, int, int],
-                 half: bool) -> None:
+                 half: bool, lo: float, hi: float, rows: NDArray[np.int_], step: int,
+                 on_first_read: bool = False) -> None:
         assert _LIB is not None
         self.shape = shape
         self.half = bool(half)
         self.dtype = np.dtype("<f2" if half else "<f4")
-        self.grid: NDArray[np.floating] | None = None
         self._n = len(fds)
+        _, H, W = shape
+        r = _c(rows, np.int64)
+        self.grid: NDArray[np.floating] = np.zeros((self._n, shape[0], len(r), -(-W // step)),
+                                                   dtype=self.dtype)
         ctypes.set_errno(0)
         handle = _LIB.tf_files_new(len(fds), _c(fds, np.int64), _c(offsets, np.int64),
                                    int(np.prod(shape)), int(half))
@@ -163,35 +183,47 @@ class FileMaps:
             raise OSError(code, os.strerror(code))
         self.handle: int = handle
         self._finalizer = weakref.finalize(self, _LIB.tf_files_free, handle)
+        code = int(_LIB.tf_files_check_setup(handle, float(lo), float(hi), H, W, r, len(r),
+                                              int(step), self.grid.ctypes.data,
+                                              int(on_first_read)))
+        if code:
+            raise OSError(code, os.strerror(code))
 
     def __len__(self) -> int:
         return self._n
 
-    def read(self, k: int) -> NDArray[np.floating]:
+    def read(self, k: int, check: bool = True) -> NDArray[np.floating]:
         """Keyframe ``k``'s (7, H, W) array (a read-only copy of its own, as read-only as a
-        memory map of the file)."""
+        memory map of the file).
+
+        Raises:
+            HeatmapValueError: if ``check`` and its values were found out of range.
+        """
         assert _LIB is not None
         out = np.empty(self.shape, dtype=self.dtype)
         _LIB.tf_files_read(self.handle, int(k), out.ctypes.data)
+        if check and int(_LIB.tf_files_checked(self.handle, int(k))) == 2:
+            raise HeatmapValueError(int(k))
         out.flags.writeable = False
         return out
 
-    def check(self, lo: float, hi: float, rows: NDArray[np.int_], step: int) -> int:
-        """The first keyframe holding a NaN or a value outside [``lo``, ``hi``] (compared
-        in float32), or ``len(self)`` if none: every value read once on all threads
-        (``tf_files_check``; its numpy twin is
-        :func:`turbinefit.io.heatmap_files.check_heatmap_values` of :meth:`read` in turn).
-        Keeps :attr:`grid`, the values of ``rows`` of each channel at every ``step``-th
-        column (N, 7, len(rows), ceil(W / step)), those of
-        :meth:`turbinefit.heatmaps.HeatmapStack.coarse_grid`."""
+    def check(self) -> int:
+        """Check every keyframe not checked yet, on all threads (``tf_files_check``; its
+        numpy twin is :func:`turbinefit.io.heatmap_files.check_heatmap_values` of
+        :meth:`read` in turn); returns :meth:`first_bad`."""
         assert _LIB is not None
-        _, H, W = self.shape
-        r = _c(rows, np.int64)
-        grid = np.empty((self._n, self.shape[0], len(r), -(-W // step)), dtype=self.dtype)
-        bad = int(_run(_LIB.tf_files_check, self.handle, float(lo), float(hi), H, W, r,
-                       len(r), int(step), grid.ctypes.data))
-        self.grid = grid if bad == self._n else None
-        return bad
+        return int(_run(_LIB.tf_files_check, self.handle))
+
+    def first_bad(self) -> int:
+        """The first keyframe found holding a NaN or a value out of range so far (all of
+        them after :meth:`check`), or ``len(self)`` if none."""
+        assert _LIB is not None
+        return int(_LIB.tf_files_first_bad(self.handle))
+
+    def checked(self, k: int) -> bool:
+        """Whether keyframe ``k``'s values were checked (in range or not)."""
+        assert _LIB is not None
+        return bool(_LIB.tf_files_checked(self.handle, int(k)))
 
     def used_bytes(self) -> int:
         """Bytes of the pages the kernels read so far: what the process holds of the
@@ -219,8 +251,16 @@ def _run(kernel: Any, *args: Any) -> Any:
         raise interrupt from None
 
 
-def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
-    """A kernel returned the first row ``bad`` (>= 0) whose heat-map had a NaN or inf."""
+def _check(bad: int, keyframes: NDArray[np.int_], maps: NativeMaps) -> None:
+    """After a kernel: raise :class:`~turbinefit.heatmaps.HeatmapValueError` if it found a
+    keyframe of files out of range (:class:`FileMaps` checked on first read), else
+    :class:`~turbinefit.heatmaps.NonFiniteHeatmapError` if it returned the first row
+    ``bad`` (>= 0) whose heat-map had a NaN or inf."""
+    if maps.files is not None:
+        assert _LIB is not None
+        first = int(_LIB.tf_files_first_bad(maps.files))
+        if first < maps.n_files:
+            raise HeatmapValueError(first)
     if bad >= 0:
         raise NonFiniteHeatmapError(int(keyframes[bad]))
 
@@ -269,7 +309,7 @@ def image_terms(
         _opt(tg), _opt(fd), _opt(nm), par, int(with_jacobian),
         None if JtHJ is None else JtHJ.ctypes.data, None if g is None else g.ctypes.data,
         cost, count)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return cost, count
 
 
@@ -303,7 +343,7 @@ def point_search(
         _c(channels, np.int64), _c(uv, np.float64), _c(usable, np.uint8), radius,
         _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return target, found.astype(bool)
 
 
@@ -323,7 +363,7 @@ def line_search(
         _c(channels, np.int64), _c(uv, np.float64), _c(normal, np.float64),
         _c(usable, np.uint8), half_length,
         step, threshold, target, found)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return target, found.astype(bool)
 
 

@@ -51,23 +51,36 @@ class NonFiniteHeatmapError(TurbinefitError, ValueError):
         self.keyframe = keyframe
 
 
+class HeatmapValueError(TurbinefitError, ValueError):
+    """A keyframe's heat-map file holds a NaN or a value outside [0, 1] (found by the
+    check of :class:`KeyframeFiles`; ``keyframe``: its index among the files)."""
+
+    def __init__(self, keyframe: int) -> None:
+        super().__init__(f"heat-map of keyframe {keyframe} holds a value outside [0, 1]")
+        self.keyframe = keyframe
+
+
 @runtime_checkable
 class KeyframeFiles(Protocol):
     """Heat-map files the compiled kernels read themselves
     (:class:`turbinefit._native.FileMaps`): ``shape`` (7, H, W) and storage (``half``:
     float16, else float32) of each keyframe's array, ``handle`` for the kernels,
-    :meth:`read` of one keyframe's whole array, and ``grid``, the coarse grid
-    (:meth:`HeatmapStack.coarse_grid`) of every keyframe once their values were checked
-    (else None)."""
+    :meth:`read` of one keyframe's whole array, the value check (:meth:`check` of those
+    not checked yet, :meth:`first_bad`) and ``grid``, the coarse grid
+    (:meth:`HeatmapStack.coarse_grid`) of every keyframe checked."""
 
     shape: tuple[int, int, int]
     half: bool
     handle: int
-    grid: NDArray[np.floating] | None
+    grid: NDArray[np.floating]
 
     def __len__(self) -> int: ...
 
-    def read(self, k: int) -> NDArray[np.floating]: ...
+    def read(self, k: int, check: bool = True) -> NDArray[np.floating]: ...
+
+    def check(self) -> int: ...
+
+    def first_bad(self) -> int: ...
 
 
 class HeatmapStack:
@@ -148,7 +161,7 @@ class HeatmapStack:
 
         if self._files is not None:
             assert self._index is not None
-            return NativeMaps(self._index, self.half, self._files.handle)
+            return NativeMaps(self._index, self.half, self._files.handle, len(self._files))
         if self._pointers is None:
             return None
         return NativeMaps(self._pointers, self.half)
@@ -158,12 +171,29 @@ class HeatmapStack:
         """The heat-map files read (None: arrays in memory or memory-mapped)."""
         return self._files
 
+    def check(self) -> None:
+        """From files: check the values of every keyframe not checked yet (a no-op in
+        memory).
+
+        Raises:
+            HeatmapValueError: naming the first file (among all of them) holding a NaN or
+                a value outside [0, 1].
+        """
+        if self._files is not None:
+            first = self._files.check()
+            if first < len(self._files):
+                raise HeatmapValueError(first)
+
     def __len__(self) -> int:
         return self.num_keyframes
 
     def __getitem__(self, k: int) -> NDArray[np.floating]:
         """Keyframe ``k``'s heat-maps (7, H, W) (a view, not a copy; from files, read anew:
-        an array of its own)."""
+        an array of its own).
+
+        Raises:
+            HeatmapValueError: from files, if its values are out of range.
+        """
         if self._files is not None:
             assert self._index is not None
             return self._files.read(int(self._index[k]))
@@ -185,14 +215,17 @@ class HeatmapStack:
         """The values of :func:`grid_rows` of each channel at every :func:`grid_step`-th
         column (K, 7, rows, columns) of ``keyframes``, as stored (float16 or float32): a
         few kB a keyframe, all that the verdict reads of a map (how much of it lights up).
-        From checked files, those the value check kept (no file is read again)."""
+        From files, those their value check keeps (no file is read again).
+
+        Raises:
+            HeatmapValueError: from files, if a value is out of range.
+        """
         kf = np.asarray(keyframes, dtype=np.int64)
         rows, step = grid_rows(self.height), grid_step(self.width)
         if self._files is not None:
             assert self._index is not None
-            grid = self._files.grid
-            if grid is not None:
-                return grid[self._index[kf].astype(np.int64)]
+            self.check()
+            return self._files.grid[self._index[kf].astype(np.int64)]
         if not len(kf):
             dtype = np.float16 if self.half else np.float32
             return np.zeros((0, NUM_CHANNELS, len(rows), len(range(0, self.width, step))),

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from turbinefit import _native
 from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS, HeatmapStack
+from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS, HeatmapStack, HeatmapValueError
 from turbinefit.heatmaps.stack import grid_rows, grid_step
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.limits import MAX_IMAGE_PIXELS, MIN_IMAGE_SIDE, open_input
@@ -42,6 +42,8 @@ CAMERA_FILE = "camera.yaml"
 #: Heat-map values may lie this far outside [0, 1] (rounding of a resize or of float16).
 VALUE_TOLERANCE = 1e-3
 
+#: When :func:`read_heatmaps` checks the values: at once, or as they are first read.
+ValueCheck = Literal["now", "first read"]
 #: How heat-map files are stored: float16 or float32.
 HeatmapDtype = Literal["float16", "float32"]
 #: How turbinefit writes heat-map files (:func:`~turbinefit.io.flight_folder.write_flight`,
@@ -153,7 +155,8 @@ def _os_error(e: OSError, n: int, fname: str) -> InputError:
 def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = None,
                   width: int | None = None, mmap: bool = True,
                   keyframes_file: StrPath | None = None,
-                  keyframe_lines: ArrayLike | None = None) -> HeatmapStack:
+                  keyframe_lines: ArrayLike | None = None,
+                  check: ValueCheck = "now") -> HeatmapStack:
     """Open ``folder/<%.6f timestamp>.npy`` for every timestamp (see module docstring).
 
     Args:
@@ -166,6 +169,12 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
             mixing float16 and float32 files has its float16 ones converted to float32 in
             memory) or load all into one float32 (N, 7, H, W) array.
         keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
+        check: when the values are checked: ``"now"``, or with the compiled kernels
+            ``"first read"``: each keyframe's when the kernels (or ``stack[k]``) first
+            read it, in the same pass (a fit's first search reads every keyframe: the
+            check then costs no pass of its own), the rest by ``stack.check()``; a value
+            out of range is then a :class:`~turbinefit.heatmaps.HeatmapValueError`, which
+            :func:`value_error` turns into this module's InputError.
 
     Raises:
         InputError: naming the heat-map file that is missing or invalid.
@@ -242,14 +251,21 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
         raise
     if use_files and opened:
         try:
-            files = _native.FileMaps([fd for fd, _, _ in opened], [o for _, o, _ in opened],
-                                     shape, opened[0][2] == _HALF_DTYPE)
+            files = _native.FileMaps(
+                [fd for fd, _, _ in opened], [o for _, o, _ in opened], shape,
+                opened[0][2] == _HALF_DTYPE, -VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE,
+                grid_rows(shape[1]), grid_step(shape[2]), on_first_read=check != "now")
         except OSError as e:
             raise _os_error(e, len(names), os.fspath(folder)) from e
         finally:
             _close([fd for fd, _, _ in opened])
-        _check_files(files, fnames)
-        return HeatmapStack(files)
+        stack = HeatmapStack(files)
+        if check == "now":
+            try:
+                stack.check()
+            except HeatmapValueError as e:
+                raise value_error(stack, e.keyframe, fnames[e.keyframe]) from None
+        return stack
     if len({m.dtype for m in maps}) > 1:  # float16 and float32 files: float32 in memory
         for j, (m, fname, _) in enumerate(mapped):
             if m.dtype == _HALF_DTYPE:
@@ -270,16 +286,17 @@ def _close(fds: list[int]) -> None:
             pass
 
 
-def _check_files(files: _native.FileMaps, fnames: list[str]) -> None:
-    """:func:`check_heatmap_values` of every keyframe of ``files``, read once on all threads
-    (:meth:`turbinefit._native.FileMaps.check`, which also keeps the coarse grid the verdict
-    reads); the first bad file in keyframe order is the error, its message from
-    :func:`check_heatmap_values`."""
-    _, height, width = files.shape
-    k = files.check(-VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE, grid_rows(height),
-                    grid_step(width))
-    if k < len(files):
-        check_heatmap_values(files.read(k), fnames[k])  # raises, naming the value
+def value_error(stack: HeatmapStack, k: int, fname: StrPath) -> InputError:
+    """The InputError of keyframe ``k`` of a stack read from files whose check found it out
+    of range (:class:`~turbinefit.heatmaps.HeatmapValueError`): the message of
+    :func:`check_heatmap_values` (channel and value), naming ``fname``."""
+    files = stack.files
+    assert files is not None
+    try:
+        check_heatmap_values(files.read(k, check=False), fname)
+    except InputError as e:
+        return e
+    return InputError("changed while it was read", path=Path(fname))
 
 
 def _check_mapped_values(mapped: list[tuple[NDArray[np.floating], str, int]],
