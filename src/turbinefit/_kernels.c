@@ -132,6 +132,11 @@ static void cr_weights(double t, double w[4], double dw[4], double d2w[4]) {
 
 static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/* fmax and fmin (a NaN argument gives the other), inlined: the library's are calls, four
+ * of them in each bilinear sample of the line search. */
+static inline double maxd(double a, double b) { return (a > b || b != b) ? a : b; }
+static inline double mind(double a, double b) { return (a < b || b != b) ? a : b; }
+
 /* One half-precision value as float32, exactly (numpy's conversion; a NaN stays a NaN):
  * the 15 bits of exponent and mantissa moved to float32's places and scaled by 2^112,
  * which rebiases the exponent of normal and subnormal values alike; infinities and NaNs
@@ -445,8 +450,8 @@ static inline double at(Plane p, size_t i) {
  * Returns 0, or 1 if a tap is not finite. */
 static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
                    double dG[2], double hG[3]) {
-    u = fmin(fmax(u, -1.0), (double)W);
-    v = fmin(fmax(v, -1.0), (double)H);
+    u = mind(maxd(u, -1.0), (double)W);
+    v = mind(maxd(v, -1.0), (double)H);
     double u0 = floor(u), v0 = floor(v);
     double wu[4], dwu[4], d2wu[4], wv[4], dwv[4], d2wv[4];
     cr_weights(u - u0, wu, dwu, d2wu);
@@ -489,7 +494,7 @@ static double border_weight(double u, double v, int W, int H, double margin, dou
     double dmin = d[which];
     grad[0] = grad[1] = 0.0;
     if (margin <= 0) return dmin >= 0 ? 1.0 : 0.0;
-    double x = fmin(fmax(dmin / margin, 0.0), 1.0);
+    double x = mind(maxd(dmin / margin, 0.0), 1.0);
     double w = x * x * (3.0 - 2.0 * x);
     double dw = (x > 0 && x < 1) ? 6.0 * x * (1.0 - x) / margin : 0.0;
     double sign = (which % 2 == 0) ? 1.0 : -1.0;
@@ -517,7 +522,7 @@ static void robust(int kind, double scale, double s, double *rho, double *drho) 
     if (kind == 1) {
         if (s <= c2) { *rho = s; *drho = 1.0; }
         else {
-            double root = sqrt(fmax(s, 1e-300));
+            double root = sqrt(maxd(s, 1e-300));
             *rho = 2.0 * scale * root - c2;
             *drho = scale / root;
         }
@@ -592,7 +597,7 @@ TF_EXPORT int64_t tf_image_terms(
                 double G, dG[2], hG[3];
                 Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
                 bad |= bicubic(pl, W, H, uv[0], uv[1], &G, dG, hG);
-                double Gc = fmin(fmax(G, 0.0), 1.0);
+                double Gc = mind(maxd(G, 0.0), 1.0);
                 double rho = log1p_eps - log(Gc + eps);
                 double w2 = w * w;
                 s = lam * w2 * rho;
@@ -704,16 +709,16 @@ TF_EXPORT int64_t tf_image_terms(
 
 /* Vertex of the parabola through the logs of three samples (correspondence._peak_offset). */
 static double peak_offset(double vm, double v0, double vp) {
-    double lm = log(fmax(vm, LOG_FLOOR)), l0 = log(fmax(v0, LOG_FLOOR));
-    double lp = log(fmax(vp, LOG_FLOOR));
+    double lm = log(maxd(vm, LOG_FLOOR)), l0 = log(maxd(v0, LOG_FLOOR));
+    double lp = log(maxd(vp, LOG_FLOOR));
     double den = lm - 2.0 * l0 + lp;
     double off = den < -1e-12 ? 0.5 * (lm - lp) / den : 0.0;
-    return fmin(fmax(off, -0.5), 0.5);
+    return mind(maxd(off, -0.5), 0.5);
 }
 
 /* Max over centre + offsets (du, dv pairs) inside the image and within radius R of the
  * window centre (cu0, cv0); -1 if none. Returns the (clamped) coordinates of the first max. */
-static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *off,
+static inline double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *off,
                          int64_t K, int cu0, int cv0, int64_t R, int *ou, int *ov, int *bad) {
     double best = -INFINITY;
     int best_u = 0, best_v = 0;
@@ -785,10 +790,10 @@ TF_EXPORT int64_t tf_point_search_scaled(
 }
 
 /* Bilinear value at (pu, pv) of a plane; -1 outside the image or if !use. */
-static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, int *bad) {
+static inline double bilinear(Plane pl, int W, int H, double pu, double pv, int use, int *bad) {
     int ok = use && pu >= 0.0 && pu <= W - 1 && pv >= 0.0 && pv <= H - 1;
     int iu = clampi((int)floor(pu), 0, W - 2), iv = clampi((int)floor(pv), 0, H - 2);
-    double fu = fmin(fmax(pu - iu, 0.0), 1.0), fv = fmin(fmax(pv - iv, 0.0), 1.0);
+    double fu = mind(maxd(pu - iu, 0.0), 1.0), fv = mind(maxd(pv - iv, 0.0), 1.0);
     const size_t r0 = (size_t)iv * W + iu;
     mark(pl, r0, r0 + 1);
     mark(pl, r0 + W, r0 + W + 1);
