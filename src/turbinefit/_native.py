@@ -158,6 +158,9 @@ class FileMaps:
             them).
         offsets: where each file's values start.
         shape: (7, H, W) of each keyframe's array; ``half``: float16, else float32.
+        lo, hi: the values allowed.
+        rows, step: the coarse grid's rows and column step.
+        on_first_read: check each keyframe when it is first read (else by :meth:`check`).
 
     Raises:
         OSError: if a file cannot be mapped.
@@ -226,8 +229,8 @@ class FileMaps:
         return bool(_LIB.tf_files_checked(self.handle, int(k)))
 
     def used_bytes(self) -> int:
-        """Bytes of the pages the kernels read so far: what the process holds of the
-        files."""
+        """Bytes of the pages the kernels read so far (the process holds these of the
+        files, and the gaps under 64 kB between them)."""
         assert _LIB is not None
         return int(_LIB.tf_files_used(self.handle))
 

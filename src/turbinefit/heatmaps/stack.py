@@ -105,7 +105,9 @@ class HeatmapStack:
         self._flat: list[NDArray[np.floating]] = []  # flat views used by gather()
         #: Whether every keyframe's maps are float16 (else :meth:`pointers` are float32's).
         self.half = False
-        if isinstance(maps, KeyframeFiles):
+        # (arrays and lists first: a protocol's isinstance costs tens of microseconds, and
+        # the tracker makes stacks of arrays at every keyframe)
+        if not isinstance(maps, (np.ndarray, list, tuple)) and isinstance(maps, KeyframeFiles):
             self._files = maps
             n = len(maps)
             self._index = (np.arange(n, dtype=np.uint64) if index is None
