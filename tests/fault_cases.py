@@ -592,6 +592,15 @@ def _cases() -> list[Case]:
     for opt, value in (("--thumbnail", "10"), ("--thumbnail", "64.5"), ("--photos", "-1"),
                        ("--gsd", "nan")):
         add(f"view{opt}-{value}", cmd(*vfit, opt, value), _view_fit, opt, usage=True)
+    # -- mission: what cannot be flown is refused before flying
+    mission = ("mission", "{w}/out", "--maps", "ideal", "--max-photos", "1", "--quiet")
+    add("mission-gsd-unreachable", cmd(*mission, "--camera", "{w}/flight/camera.yaml"), None,
+        r"--camera: the camera \(focal length \d+ px\) reaches", r"a focal length of at least")
+    add("mission-unknown-type", cmd(*mission, "--turbine-type", "v90"), None,
+        r"--turbine-type: unknown turbine type 'v90'")
+    for opt, value in (("--standoff", "1"), ("--gsd", "0"), ("--defects", "-1"),
+                       ("--photo-width", "10"), ("--max-gimbal-up", "nan")):
+        add(f"mission{opt}-{value}", cmd(*mission, opt, value), None, opt, usage=True)
     return c
 
 

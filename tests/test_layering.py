@@ -23,7 +23,8 @@ INSPECTION = ("inspection",)
 
 
 #: What the core must never import, even inside a function.
-ABOVE_CORE = ("io", "sim", "plots", "detect", "train", "cli", "jobs", "eval", "experiments")
+ABOVE_CORE = ("io", "sim", "plots", "detect", "tiepoints", "train", "cli", "jobs", "eval",
+              "experiments", "mission", "view")
 
 
 def _modules(names: tuple[str, ...]) -> list[Path]:
@@ -72,6 +73,18 @@ ABOVE_VIEW = ("cli", "jobs", "experiments", "train", "detect", "sim")
 @pytest.mark.parametrize("path", _modules(("view",)), ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_the_view_imports_nothing_above_it(path: Path) -> None:
     bad = sorted(m for m in _imported(path) if m.split(".")[1] in ABOVE_VIEW)
+    assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
+
+
+#: What the mission loop must not import: it sits above the simulator, the inspection, the
+#: detector and the solver, below the jobs (which write its outputs) and the command line.
+ABOVE_MISSION = ("cli", "jobs", "experiments", "train", "view", "plots")
+
+
+@pytest.mark.parametrize("path", _modules(("mission",)),
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_the_mission_imports_nothing_above_it(path: Path) -> None:
+    bad = sorted(m for m in _imported(path) if m.split(".")[1] in ABOVE_MISSION)
     assert not bad, f"{path.relative_to(PACKAGE)} imports {bad}"
 
 

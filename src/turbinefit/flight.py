@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.costs.edges import PhotoStack
+from turbinefit.costs.relative_motion import RelativeMotions
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
@@ -30,6 +32,11 @@ class Flight:
         position_sigma: (N, 3) standard deviations [m] of the positions of
             ``world_T_cam`` along the world axes (RTK), or None: then no absolute position
             prior (:mod:`turbinefit.costs.position_prior`).
+        motions: (N,) relative motions between consecutive photos measured from their
+            tie points (entry k: from keyframe k-1 to k), or None
+            (:mod:`turbinefit.costs.relative_motion`).
+        photos: (N,) the keyframes' grey photos for the edge term, or None
+            (:mod:`turbinefit.costs.edges`).
     """
 
     camera: PinholeCamera
@@ -41,6 +48,8 @@ class Flight:
     gt_world_T_cam: SE3 | None = None
     gt_turbine: TurbineParams | None = None
     position_sigma: NDArray[np.float64] | None = None
+    motions: RelativeMotions | None = None
+    photos: PhotoStack | None = None
 
     def __post_init__(self) -> None:
         n = len(self.timestamps)
@@ -57,6 +66,10 @@ class Flight:
                               or not np.all(s > 0)):
             raise ValueError(f"position_sigma must be ({n}, 3) positive and finite, got shape "
                              f"{s.shape}")
+        if self.photos is not None and len(self.photos) != n:
+            raise ValueError(f"{n} timestamps but {len(self.photos)} photos")
+        if self.motions is not None and len(self.motions) != n:
+            raise ValueError(f"{n} timestamps but {len(self.motions)} relative motions")
         for name in ("odometry", "gt_world_T_cam"):
             v = getattr(self, name)
             if v is not None and v.batch_shape != (n,):

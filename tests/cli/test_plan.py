@@ -252,7 +252,9 @@ def test_plan_writes_mission_files_that_fly_the_plan(fit_dir: Path, tmp_path: Pa
     summary = json.loads((out / "summary.json").read_text())
     assert summary["platform"] == "generic" and summary["georeference"] == "--origin"
     files = summary["missions"]["formats"]
-    assert files["litchi"] == ["litchi_01.csv", "litchi_02.csv"]
+    # 99 waypoints a mission, each after the first starting at the previous one's last
+    n = 1 + math.ceil((len(rows) - 99) / 98)
+    assert files["litchi"] == [f"litchi_{k:02d}.csv" for k in range(1, n + 1)]
     georef = Georef(51.45, -2.51, 40.0)
     xyz = np.array([[float(r[k]) for k in "xyz"] for r in rows])
     heading = (90.0 - np.array([float(r["yaw_deg"]) for r in rows])) % 360.0
@@ -337,16 +339,22 @@ def test_mission_files_need_a_georeference(fit_dir: Path, sim_flight_dir: Path, 
 def test_plan_says_which_sides_the_gimbal_cannot_see(fit_dir: Path, camera_yaml: Path,
                                                      tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
-    """The default gimbal (+20 deg) cannot look at the lower edge of a blade near horizontal:
-    the plan says so rather than leaving it to the coverage."""
+    """The default gimbal (+20 deg) cannot look straight at the lower edge of a blade near
+    horizontal (views along the blade see part of it): the plan says how much of it its
+    photos show rather than leaving it to the coverage."""
     rc, stdout, err = run(capsys, "plan", str(fit_dir), "--standoff", "10", "--camera",
                           str(camera_yaml), "--out", str(tmp_path / "plan"), "--no-plots")
     assert rc == 0, err
     summary = json.loads((tmp_path / "plan" / "summary.json").read_text())
-    unseen = [k for k, n in summary["beyond_gimbal"].items() if summary["stations"][k] == 0]
+    covered = summary["covered"]
+    assert len(covered) == 12
+    unseen = [k for k in summary["beyond_gimbal"] if covered[k] < 0.95]
     assert unseen and all(k.split("/")[1] in ("leading_edge", "trailing_edge") for k in unseen)
-    assert f"not photographed at all, every view beyond the gimbal's 20 deg up: " \
-           f"{', '.join(unseen)}" in stdout
+    shares = ", ".join(f"{k} {100 * covered[k]:.0f} %" for k in unseen)
+    assert f"photographed in part, views beyond the gimbal's 20 deg up: {shares} of the " \
+           f"span at {summary['covered_mm_px']:.2f} mm/px" in stdout
+    # the other sides are covered whole
+    assert all(v >= 0.95 for k, v in covered.items() if k not in unseen)
 
 
 def test_the_gis_twins_open_in_gdal_as_wgs84_points(fit_dir: Path, tmp_path: Path) -> None:

@@ -197,3 +197,40 @@ def test_a_replan_leaves_out_what_was_done_and_starts_where_the_drone_is(
     empty = plan_path(surface, CAM, PlanOptions(8.0, 4.2),
                       done=lambda *_: True, start=here)
     assert empty.photos == []
+
+
+#: The 20 MP camera's field of view (5280 x 3956 px, f = 7350 px) at 640 x 480: the same
+#: footprints; its resolution is 1000 z / 891 mm/px, so 2 mm/px there is 16.5 here.
+WIDE = PinholeCamera(640, 480, 891.0, 891.0, 319.5, 239.5)
+WIDE_GSD = 2.0 * 7350.0 / 891.0
+
+
+@pytest.mark.parametrize("name, seed, pitch_deg, twisted", [
+    ("nrel5mw", 3, 0.0, False),  # blade B hanging down: its suction side's root by the tower
+    ("v80", 3, 0.0, False),
+    ("swt93", 5, 0.0, False),
+    ("nrel5mw", 3, -5.0, True),  # pitched and twisted as the renderer draws its blades
+])
+def test_every_blade_side_is_covered_whatever_the_rotor_position(
+        name: str, seed: int, pitch_deg: float, twisted: bool) -> None:
+    """Property (over turbine types and the rotor positions of missions' seeds, flat and
+    twisted blades): the gimbal free, at 10 m and the 20 MP camera's 2 mm/px, the photos of
+    the plan made for the surface cover every blade side from the spinner to the tip,
+    the root included, judged by the coverage's own ray casting; and the plan's own
+    prediction of that coverage is the coverage's."""
+    from turbinefit.inspection.surface import SurfaceShape
+    from turbinefit.turbine.solid import ROOT_TWIST
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(6)[0])
+    shape = SurfaceShape(blade_pitch=math.radians(pitch_deg),
+                         blade_twist=-ROOT_TWIST if twisted else 0.0)
+    surface = TurbineSurface(preset_turbine(name, rng), shape=shape)
+    p = plan_path(surface, WIDE, PlanOptions(10.0, WIDE_GSD))
+    assert p.min_rotor_clearance >= 10.0
+    assert sum(p.fill.values()) > 0  # the root needed views of its own
+    cov = flight_coverage(surface, WIDE, poses(p.photos), step=1.0)
+    for i, g in enumerate(cov.grids[:3]):
+        got = g.covered(WIDE_GSD)
+        assert got.min() >= 0.95, (i, got)
+        for k in range(4):
+            assert p.covered[(i, k)] == pytest.approx(got[k], abs=0.05)

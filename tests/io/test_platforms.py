@@ -65,3 +65,24 @@ def test_a_broken_entry_is_refused_naming_its_field(entry: str, field: str,
     path.write_text(f"x: {entry}\n")
     with pytest.raises(InputError, match=field):
         drone_platforms.__wrapped__(path)
+
+
+def test_a_platforms_camera_is_the_camera_tables(tmp_path: Path) -> None:
+    # the lens and sensor come from the importer's camera table (one place, with sources);
+    # a camera it does not hold, or a zoom lens, is refused naming the entry
+    from turbinefit.errors import InputError
+    from turbinefit.io.dji_cameras import dji_cameras
+    from turbinefit.io.platforms import drone_platforms
+
+    cams = {c.name: c for c in dji_cameras()}
+    for key, p in drone_platforms().items():
+        if p.camera is not None:
+            c = cams[p.camera.name]
+            assert (p.camera.focal_length_mm, p.camera.sensor_width_mm) == (
+                c.focal_range_mm[0], c.sensor_width_mm), key
+    text = (Path(drone_platforms.__wrapped__.__defaults__[0])  # type: ignore[attr-defined]
+            .read_text().replace('name: "Matrice 30 / 30T wide"', 'name: "Matrice 31 wide"'))
+    bad = tmp_path / "platforms.yaml"
+    bad.write_text(text)
+    with pytest.raises(InputError, match=r"\[m30t\.camera\]: 'Matrice 31 wide' is not a camera"):
+        drone_platforms.__wrapped__(bad)  # type: ignore[attr-defined]

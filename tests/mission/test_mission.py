@@ -52,7 +52,7 @@ def test_the_navigation_flies_to_where_it_believes_the_waypoint_is() -> None:
     recorded = SE3(np.concatenate([quat_multiply(dq, estimated.wxyz), [1.2, 0.0, 30.0]]))
     nav.correct(recorded, estimated)
     cmd = nav.command(target)
-    assert np.allclose(cmd.translation, target.translation + [1.2, 0.0, 0.0])
+    assert np.allclose(cmd.translation, target.translation + np.array([1.2, 0.0, 0.0]))
     assert np.allclose(cmd.wxyz, quat_multiply(dq, target.wxyz))
     assert np.allclose(nav.believed(cmd).wxyz_xyz, target.wxyz_xyz)
     open_loop = Navigation(closed_loop=False)

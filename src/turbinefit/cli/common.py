@@ -263,7 +263,9 @@ def add_photo_options(parser: argparse.ArgumentParser, what: str) -> None:
 # ---- fit options, generated from FitConfig ------------------------------------------------
 
 #: FitConfig fields with no command-line option (set them in a --config YAML file).
-_YAML_ONLY = frozenset({"geometry", "pair_information"})
+#: (The tie-point and edge terms need data no command gives the fit yet: library only.)
+_YAML_ONLY = frozenset({"geometry", "pair_information", "lambda_motion", "motion_robust_scale",
+                        "lambda_edges", "edge_sigma", "edge_reach"})
 #: FitConfig fields the tracker does not use (the batch fit's limits and warm-up stages).
 _BATCH_ONLY = frozenset({"max_iterations", "max_rounds", "warmup", "warmup_stiffness",
                          "warmup_align_rounds", "warmup_match_rounds",

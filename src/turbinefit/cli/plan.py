@@ -28,6 +28,14 @@ does). Details: docs/inspection.md."""
 FORMATS = ("dji-wpml", "litchi", "qgc", "mavlink", "kml")
 
 
+#: A blade side the planned photos show less of than this share is named.
+WELL_COVERED = 0.95
+
+
+def _shares(covered: dict[str, float], keys: list[str]) -> str:
+    return ", ".join(f"{k} {100.0 * covered[k]:.0f} %" for k in keys)
+
+
 def _formats(text: str) -> tuple[str, ...]:
     names = tuple(f.strip().lower() for f in text.split(","))
     for f in names:
@@ -112,12 +120,17 @@ def run(args: argparse.Namespace) -> int:
     if s["skipped"]:
         print("stations without a clear view: "
               + ", ".join(f"{k} {n}" for k, n in s["skipped"].items()))
-    unseen = [k for k, n in s["beyond_gimbal"].items() if s["stations"].get(k, 0) == 0]
-    if unseen:
-        print(f"not photographed at all, every view beyond the gimbal's "
-              f"{s['max_gimbal_up_deg']:g} deg up: {', '.join(unseen)} (park the rotor with "
-              "that blade pointing down, or fly a gimbal that looks further up; "
-              "docs/inspection.md#platforms)")
+    short = {k: v for k, v in s["covered"].items() if v < WELL_COVERED}
+    steep = [k for k in short if k in s["beyond_gimbal"]]
+    if steep:
+        print(f"photographed in part, views beyond the gimbal's {s['max_gimbal_up_deg']:g} "
+              f"deg up: {_shares(short, steep)} of the span at {s['covered_mm_px']:.2f} "
+              "mm/px (park the rotor with that blade pointing down, or fly a gimbal that "
+              "looks further up; docs/inspection.md#platforms)")
+    other = [k for k in short if k not in steep]
+    if other:
+        print(f"photographed in part: {_shares(short, other)} of the span at "
+              f"{s['covered_mm_px']:.2f} mm/px")
     for fmt, files in s["missions"]["formats"].items():
         n = len(files)
         print(f"{fmt}: {files[0] if n == 1 else f'{files[0]} .. {files[-1]}'}"

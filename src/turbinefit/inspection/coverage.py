@@ -140,6 +140,34 @@ def part_samples(surface: TurbineSurface, part: int, step: float) -> tuple[Float
     return spans, bl.root + spans[:, None] * bl.axis
 
 
+def sample_views(surface: TurbineSurface, camera: PinholeCamera, world_R_cam: FloatArray,
+                 world_p_cam: FloatArray, part: int, world_p: FloatArray
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], FloatArray,
+                            FloatArray]:
+    """Which samples ``world_p`` (m, 3) on the axis of part ``part`` each of k cameras
+    (rotations ``world_R_cam`` (k, 3, 3), positions ``world_p_cam`` (k, 3)) shows (the
+    module docstring's rules: in the photo, the ray meeting that part first): the pairs
+    (camera ``kk``, sample ``mm``) in view, with the side seen there (index into
+    :func:`side_names`), the distance along the ray [m] and the GSD [mm/px]."""
+    f = math.sqrt(camera.fx * camera.fy)
+    R, o = world_R_cam, world_p_cam
+    # camera-frame samples (k, m, 3): R^T (p - o)
+    cam_p = np.einsum("kji,kmj->kmi", R, world_p[None, :, :] - o[:, None, :])
+    _, ok, _ = camera.project(cam_p)
+    kk, mm = np.nonzero(ok)
+    if kk.size == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, empty, np.zeros(0), np.zeros(0)
+    ray = world_p[mm] - o[kk]
+    ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
+    hits = surface.cast_rays(o[kk], ray)
+    seen = hits.part == part
+    kk, mm = kk[seen], mm[seen]
+    dist, side = hits.distance[seen], hits.side[seen]
+    depth = dist * np.einsum("ij,ij->i", ray[seen], R[kk, :, 2])
+    return kk, mm, side, dist, 1000.0 * depth / f
+
+
 def flight_coverage(surface: TurbineSurface, camera: PinholeCamera, world_T_cam: SE3,
                     step: float = 0.5, chunk: int = 256) -> Coverage:
     """What each keyframe ``world_T_cam`` (N,) of a flight with photos of ``camera`` shows
@@ -149,7 +177,6 @@ def flight_coverage(surface: TurbineSurface, camera: PinholeCamera, world_T_cam:
         raise ValueError(f"step must be positive, got {step}")
     poses = SE3(world_T_cam.wxyz_xyz.reshape(-1, 7))
     n = len(poses)
-    f = math.sqrt(camera.fx * camera.fy)
     rows: list[PartInView] = []
     grids = []
     samples = [part_samples(surface, p, step) for p in range(len(COVERED_PARTS))]
@@ -166,20 +193,9 @@ def flight_coverage(surface: TurbineSurface, camera: PinholeCamera, world_T_cam:
         for p, (spans, pts) in enumerate(samples):
             if spans.size == 0:
                 continue
-            # camera-frame samples (k, m, 3): R^T (p - o)
-            cam_p = np.einsum("kji,kmj->kmi", R, pts[None, :, :] - o[:, None, :])
-            _, ok, _ = camera.project(cam_p)
-            kk, mm = np.nonzero(ok)
+            kk, mm, side, dist, gsd = sample_views(surface, camera, R, o, p, pts)
             if kk.size == 0:
                 continue
-            ray = pts[mm] - o[kk]
-            ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
-            hits = surface.cast_rays(o[kk], ray)
-            seen = hits.part == p
-            kk, mm = kk[seen], mm[seen]
-            dist, side = hits.distance[seen], hits.side[seen]
-            depth = dist * np.einsum("ij,ij->i", ray[seen], R[kk, :, 2])
-            gsd = 1000.0 * depth / f
             g = grids[p]
             before = g.best_gsd[side, mm]
             np.minimum.at(g.best_gsd, (side, mm), gsd)

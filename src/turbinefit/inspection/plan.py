@@ -4,16 +4,31 @@ rotation).
 
 **Stations.** Each side of each blade (:data:`~turbinefit.inspection.surface.BLADE_SIDES`)
 and each face of the tower is photographed from stations along its span: the camera
-looks across the part's axis, straight at the side (along the side's normal; the blade
-flat in the rotor plane unless a pitch is given), from ``standoff`` metres off the
-modelled surface. Stations are spaced so that neighbouring photos share ``overlap`` of
-the footprint along the part (the image's short side, at the stand-off), from the
-spinner's edge (the ground) to the tip (the nacelle). Where the straight view is
-blocked or would bring the camera within the stand-off of the rotor (the hub and the
-other blades), or beyond the gimbal's upward pitch, the view turns about the part's axis
-by up to 40 deg (still inside the side's 90 deg sector, so the side is still the one
-seen); a station no turn clears is left out and counted. A stand-off at which more than
-half the stations of a blade side are blocked by the rotor "meets the rotor" (an error).
+looks across the part's axis, straight at the side (along the side's normal, turned with
+the section's pitch and twist; the blade flat in the rotor plane unless they are given),
+from ``standoff`` metres off the modelled surface. Stations are spaced so that
+neighbouring photos share ``overlap`` of the footprint along the part (the image's short
+side, at the stand-off), from the spinner's edge (the ground) to the tip (the nacelle).
+Where the straight view is blocked or would bring the camera within the stand-off of the
+rotor (the hub and the other blades), or beyond the gimbal's upward pitch, the view turns
+about the part's axis by up to 40 deg (still inside the side's 90 deg sector; the centre
+ray must meet the part on that side); a station no turn clears is left out and counted.
+A stand-off at which more than half the stations of a blade side are blocked by the
+rotor "meets the rotor" (an error).
+
+**Views added (the root).** Near the hub the straight views come within the stand-off of
+the spinner, the other blades or (downwind) the nacelle and tower, so the root, 3-8 m
+from the hub, would go unseen. The stations' photos are judged as the coverage judges
+them (:func:`~turbinefit.inspection.coverage.sample_views` on samples along each blade
+side): where a side's samples are not shown at the resolution asked for (without one,
+:data:`FILL_GSD_FACTOR` times the stand-off's), views aimed at them are added greedily,
+each the one showing most of what is left (the nearest of equals): turned about the
+blade's axis, tilted along it (a camera further out looking back at the root, or nearer
+the hub looking out) and from the stand-off out to the distance of that resolution
+(:class:`_Filler`), each keeping the same clearances and gimbal pitch, its centre ray
+meeting the side. With the gimbal limited they also see part of a blade's lower edge
+that no straight view within the gimbal's pitch shows. ``Plan.covered`` is the share of
+each blade side the photos planned show.
 
 **Clearance.** The camera keeps ``standoff`` from every blade and the spinner along the
 whole path, and ``tower_clearance`` (a quarter of the stand-off, at least
@@ -22,15 +37,19 @@ suction sides' stations need to come near), and stays above ``min_altitude``; th
 planner's own distances (closed-form bounds per shape, checked every quarter metre) keep
 :func:`check_margin` more, and the finished path is checked by :func:`check_plan` with
 the independent distances of :mod:`turbinefit.inspection.clearance` (a plan failing it
-is refused). Consecutive waypoints are joined straight if that leg is clear, else through
-transit planes parallel to the rotor: one upwind of the spinner, one downwind of the
-nacelle, crossing between them through the gap between blades that points highest; a
-station no clear route reaches is left out and counted.
+is refused). Consecutive waypoints are joined by the shortest clear route of: straight,
+round the blade (two stations of one blade), round the tower (two of the tower), through
+transit planes parallel to the rotor (one upwind of the spinner, one downwind of the
+nacelle), crossing between them through the gap between blades that points highest;
+each also from points backed away from the stations against their views
+(:data:`BACK_OFF`: leaving a station just at the stand-off from a pitched blade along
+the shaft first comes nearer its edge). A station no clear route reaches is left out
+and counted.
 
 **Order.** Upwind first (for each blade A, B, C: leading edge, pressure side, trailing
 edge), then downwind (each blade's suction side), then the tower's faces (back, left,
-front, right), each sweep run in the direction that starts nearest the end of the
-previous one.
+front, right), each sweep (its stations in the order of the camera's position along the
+part) run in the direction that starts nearest the end of the previous one.
 """
 
 from __future__ import annotations
@@ -42,9 +61,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from turbinefit.geometry.camera import PinholeCamera
+from turbinefit.geometry.se3 import world_T_cam_from_angles
 from turbinefit.inspection.clearance import (
     LEG_STEP,
     ROTOR,
@@ -54,10 +74,33 @@ from turbinefit.inspection.clearance import (
     path_clearance,
     solid_samples,
 )
-from turbinefit.inspection.surface import BLADE_SIDES, PARTS, TOWER, FloatArray, TurbineSurface
+from turbinefit.inspection.coverage import part_samples, sample_views
+from turbinefit.inspection.surface import (
+    BLADE_SIDES,
+    PARTS,
+    TOWER,
+    FloatArray,
+    IntArray,
+    TurbineSurface,
+)
 
 #: Turns of the view about the part's axis tried at a station, in order [deg].
 TURNS_DEG = (0.0, 15.0, -15.0, 30.0, -30.0, 40.0, -40.0)
+#: Views added where the stations leave a blade side uncovered (:class:`_Filler`): turns
+#: about the blade's axis [deg], tilts along it [deg] (positive: the camera further out
+#: than the span it looks at), distances tried between the stand-off and the resolution's
+#: (evenly), samples aimed at per round, rounds, the most views added per side, and the
+#: sample spacing along the blade [m].
+FILL_TURNS_DEG = (0.0, 15.0, -15.0, 30.0, -30.0, 40.0, -40.0)
+FILL_TILTS_DEG = (0.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0, 40.0, 50.0)
+FILL_DISTANCES = 4
+FILL_TARGETS = 10
+FILL_ROUNDS = 2
+FILL_MAX = 12
+FILL_STEP = 0.25
+#: Without a resolution asked for, the added views keep within this factor of the
+#: resolution at the stand-off.
+FILL_GSD_FACTOR = 1.25
 #: Sides in the order they are flown (indices into BLADE_SIDES) upwind, then downwind.
 UPWIND_SIDES = (0, 1, 2)
 DOWNWIND_SIDES = (3,)
@@ -76,6 +119,14 @@ MIN_STANDOFF = 3.0
 #: The least distance between a transit point and its neighbours [m]: DJI's waypoint
 #: missions (Litchi's) take waypoints at least 0.5 m apart.
 MIN_LEG = 0.5
+#: How far [m] the router steps out of a station (back against its view, along its part
+#: or round it) when no route from the station itself clears: a station just at the
+#: stand-off from a blade and the clearance from the tower, or from a pitched blade, where
+#: any leg straight to a transit plane first comes nearer one of them.
+BACK_OFF = (1.0, 3.0)
+#: The largest turn [deg] about a blade's axis between the transit points of a route
+#: round the blade.
+ARC_STEP_DEG = 20.0
 #: The least tower clearance [m] (``plan --tower-clearance``, and the default's floor):
 #: the drone's radius and hovering error; the tower and the nacelle are modelled better
 #: than the blades.
@@ -151,6 +202,13 @@ class Plan:
         stations: per (part, side) the stations planned (photos).
         beyond_gimbal: per (part, side) the stations left out because every view of them
             looks up more steeply than the gimbal can (part of ``skipped``).
+        fill: per blade side the stations added where the others leave it uncovered (the
+            root; part of ``stations``).
+        covered: per blade side the share of its span the photos planned show at
+            ``goal_mm`` or finer (the coverage's rules on the surface planned for, samples
+            every :data:`FILL_STEP` m).
+        goal_mm: the resolution the added stations keep [mm/px]: the one asked for, else
+            :data:`FILL_GSD_FACTOR` times ``gsd_mm``.
         min_rotor_clearance: least distance of the path (waypoints and legs) from the
             blades and the spinner [m], from :func:`check_plan` (a lower bound).
         min_tower_clearance: the same from the tower and the nacelle [m].
@@ -162,14 +220,16 @@ class Plan:
     skipped: dict[tuple[int, int], int] = field(default_factory=dict)
     stations: dict[tuple[int, int], int] = field(default_factory=dict)
     beyond_gimbal: dict[tuple[int, int], int] = field(default_factory=dict)
+    fill: dict[tuple[int, int], int] = field(default_factory=dict)
+    covered: dict[tuple[int, int], float] = field(default_factory=dict)
+    goal_mm: float = math.nan
     min_rotor_clearance: float = math.inf
     min_tower_clearance: float = math.inf
     check_s: float = 0.0
 
     @property
     def length_m(self) -> float:
-        p = np.array([w.position for w in self.waypoints])
-        return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+        return _length(np.array([w.position for w in self.waypoints]).reshape(-1, 3))
 
     @property
     def photos(self) -> list[Waypoint]:
@@ -231,6 +291,116 @@ class _Clearance:
         q = np.abs((p - s.nacelle_centre) @ E.T) - s.nacelle_half
         box = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
         return np.minimum(tower, box)
+
+
+class _Filler:
+    """Views added where the stations' photos leave a blade side uncovered (see the module
+    docstring): the samples of the side along the blade (every :data:`FILL_STEP` metres)
+    that no photo shows at the resolution ``goal_mm`` [mm/px] or finer, as
+    :func:`~turbinefit.inspection.coverage.sample_views` judges (the coverage's own rules:
+    in the photo, the ray meeting the blade first, on that side), are covered greedily by
+    views aimed at them from the stand-off out to the distance of that resolution, turned
+    about the blade's axis (:data:`FILL_TURNS_DEG`) and tilted along it
+    (:data:`FILL_TILTS_DEG`), each view keeping the planner's clearances and the gimbal's
+    pitch, its centre showing the side."""
+
+    def __init__(self, s: TurbineSurface, camera: PinholeCamera, clear: _Clearance, dp: float,
+                 tp: float, min_alt: float, max_up: float, goal_mm: float) -> None:
+        self.s, self.camera, self.clear = s, camera, clear
+        self.dp, self.tp, self.min_alt, self.max_up = dp, tp, min_alt, max_up
+        self.goal = goal_mm
+        self.depth = goal_mm * math.sqrt(camera.fx * camera.fy) / 1000.0
+        self.samples = [part_samples(s, i, FILL_STEP) for i in range(3)]
+
+    def _seen(self, position: FloatArray, yaw: FloatArray, pitch: FloatArray, i: int,
+              pts: FloatArray) -> FloatArray:
+        """(k, 4, m) whether each view (k) shows each sample ``pts`` (m, 3) of blade ``i``
+        on each side at the resolution asked for."""
+        R = world_T_cam_from_angles(position, yaw, pitch, 0.0).rotation_matrix()
+        kk, mm, side, _, g = sample_views(self.s, self.camera, R.reshape(-1, 3, 3),
+                                          position.reshape(-1, 3), i, pts)
+        out = np.zeros((len(yaw), 4, len(pts)), dtype=bool)
+        fine = g <= self.goal
+        out[kk[fine], side[fine], mm[fine]] = True
+        return out
+
+    def covered(self, photos: list[Waypoint], i: int) -> NDArray[np.bool_]:
+        """(4, m) the samples of blade ``i``'s sides ``photos`` show."""
+        pts = self.samples[i][1]
+        if not photos:
+            return np.zeros((4, len(pts)), dtype=bool)
+        p = np.array([w.position for w in photos])
+        seen = self._seen(p, np.array([w.yaw for w in photos]),
+                          np.array([w.pitch for w in photos]), i, pts)
+        return np.asarray(seen.any(axis=0), dtype=bool)
+
+    def _candidates(self, i: int, side: int, targets: IntArray
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The views aimed at samples ``targets`` that keep the clearances and the gimbal's
+        pitch and whose centre shows the side: positions (k, 3), yaws, pitches, spans aimed
+        at and distances (k,)."""
+        s, bl = self.s, self.s.blades[i]
+        spans, pts = self.samples[i][0][targets], self.samples[i][1][targets]
+        A, B = s.blade_section(spans)
+        tw = s.twist(spans)[:, None]
+        chord = np.cos(tw) * bl.chord + np.sin(tw) * bl.normal
+        normal = np.cos(tw) * bl.normal - np.sin(tw) * bl.chord
+        n = [chord, normal, -chord, -normal][side]  # (t, 3), across the axis
+        turn = np.radians(FILL_TURNS_DEG)[None, :, None]
+        o = np.cos(turn) * n[:, None] + np.sin(turn) * np.cross(bl.axis, n)[:, None]
+        ext = np.hypot(A[:, None] * np.einsum("tuj,tj->tu", o, chord),
+                       B[:, None] * np.einsum("tuj,tj->tu", o, normal))
+        tilt = np.radians(FILL_TILTS_DEG)[None, None, :, None]
+        u = np.cos(tilt) * o[:, :, None] + np.sin(tilt) * bl.axis  # (t, u, v, 3)
+        lo = self.dp + ext
+        hi = np.maximum(lo, self.depth + ext)
+        q = np.linspace(0.0, 1.0, FILL_DISTANCES)
+        r = lo[..., None] + (hi - lo)[..., None] * q  # (t, u, d)
+        shape = (len(spans), len(FILL_TURNS_DEG), len(FILL_TILTS_DEG), FILL_DISTANCES)
+        r4 = np.broadcast_to(r[:, :, None, :], shape)
+        c = pts[:, None, None, None] + r4[..., None] * u[:, :, :, None]
+        view = -np.broadcast_to(u[:, :, :, None], c.shape)
+        c, view, r4 = c.reshape(-1, 3), view.reshape(-1, 3), r4.reshape(-1)
+        span = np.broadcast_to(spans[:, None, None, None], shape).reshape(-1)
+        pitch = np.arcsin(np.clip(view[:, 2], -1.0, 1.0))
+        ok = (pitch <= self.max_up) & (c[:, 2] >= self.min_alt)
+        ok[ok] = (self.clear.rotor(c[ok]) >= self.dp) & (self.clear.tower(c[ok]) >= self.tp)
+        if np.any(ok):
+            hits = s.cast_rays(c[ok], view[ok])
+            ok[ok] = (hits.part == i) & (hits.side == side)
+        yaw = np.arctan2(view[ok, 1], view[ok, 0])
+        return c[ok], yaw, pitch[ok], span[ok], r4[ok]
+
+    def fill(self, i: int, side: int, covered: NDArray[np.bool_]) -> list[Waypoint]:
+        """The views added to cover side ``side`` of blade ``i`` where ``covered`` (4, m)
+        says no photo does (see the class docstring)."""
+        pts = self.samples[i][1]
+        todo = ~covered[side]
+        tried = np.zeros(len(pts), dtype=bool)
+        added: list[Waypoint] = []
+        for _ in range(FILL_ROUNDS):
+            idx = np.flatnonzero(todo & ~tried)
+            if idx.size == 0:
+                break
+            targets = idx[np.unique(np.round(np.linspace(0, idx.size - 1,
+                                                         min(idx.size, FILL_TARGETS))).astype(int))]
+            tried[targets] = True
+            c, yaw, pitch, span, dist = self._candidates(i, side, targets)
+            if not len(c):
+                continue
+            left = np.flatnonzero(todo)
+            gain = self._seen(c, yaw, pitch, i, pts[left])[:, side]  # (k, m)
+            while len(added) < FILL_MAX and gain.size:
+                count = gain.sum(axis=1)
+                # the view showing the most, of those the nearest
+                k = int(np.lexsort((dist, -count))[0])
+                if count[k] == 0:
+                    break
+                added.append(Waypoint(c[k].copy(), float(yaw[k]), float(pitch[k]), i, side,
+                                      float(span[k])))
+                todo[left[gain[k]]] = False
+                gain[:, gain[k].copy()] = False
+        return added
 
 
 def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptions,
@@ -311,7 +481,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
             if rot < dp or clear.tower(c[None])[0] < (tp if part < 3 else dp):
                 continue
             hits = s.cast_rays(c[None], view[None])
-            if int(hits.part[0]) != part:
+            if int(hits.part[0]) != part or int(hits.side[0]) != side:
                 continue
             return Waypoint(c, math.atan2(view[1], view[0]), math.asin(view[2]), part, side,
                             span)
@@ -329,10 +499,11 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         chords = np.cos(tw) * bl.chord + np.sin(tw) * bl.normal
         normals = np.cos(tw) * bl.normal - np.sin(tw) * bl.chord
         for side in range(4):
-            normal0 = [bl.chord, bl.normal, -bl.chord, -bl.normal][side]
             sw, blocked, steep = [], 0, 0
             for j, sp in enumerate(spans):
-                w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal0,
+                # the side's normal turned with the section (twist)
+                normal = [chords[j], normals[j], -chords[j], -normals[j]][side]
+                w = station(i, side, float(sp), bl.root + sp * bl.axis, bl.axis, normal,
                             (float(A[j]), float(B[j]), chords[j], normals[j]))
                 if isinstance(w, Waypoint):
                     sw.append(w)
@@ -365,6 +536,22 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         plan.stations[(TOWER, face)] = len(sw)
         plan.skipped[(TOWER, face)] = len(heights) - len(sw)
 
+    goal = opt.max_gsd_mm if opt.max_gsd_mm is not None else FILL_GSD_FACTOR * gsd
+    filler = _Filler(s, camera, clear, dp, tp, opt.min_altitude, max_up, goal)
+    for i, bl in enumerate(s.blades):
+        photos = [w for sw in sweeps.values() for w in sw]
+        covered = filler.covered(photos, i)
+        for side in range(4):
+            added = filler.fill(i, side, covered)
+            if not added:
+                continue
+            covered |= filler.covered(added, i)
+            # flown in the order of the camera's position along the blade
+            both = sweeps[(i, side)] + added
+            along = [float((w.position - bl.root) @ bl.axis) for w in both]
+            sweeps[(i, side)] = [both[j] for j in np.argsort(along, kind="stable")]
+            plan.stations[(i, side)] += len(added)
+            plan.fill[(i, side)] = len(added)
     if done is not None:
         for key, sw in sweeps.items():
             left = [w for w in sw if not done(w.part, w.side, w.span)]
@@ -379,6 +566,7 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         p0 = np.asarray(start, dtype=np.float64).reshape(3)
         path.append(Waypoint(p0, math.atan2(float(s.hub[1] - p0[1]), float(s.hub[0] - p0[0])),
                              0.0))
+    last: tuple[int, tuple[int, int]] | None = None  # the last station: its legs' start, key
     for key in order:
         sw = sweeps[key]
         if not sw:
@@ -387,15 +575,31 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
                 sw[0].position - path[-1].position):
             sw = sw[::-1]
         for w in sw:
+            begin = len(path)  # where the legs to w begin
             if path:
                 legs = router.connect(path[-1], w)
+                if legs is None and last is not None and last[0] > 0:
+                    # the last station may be a dead end: leave it out if w can be
+                    # reached from where the way to it began
+                    legs = router.connect(path[last[0] - 1], w)
+                    if legs is not None:
+                        del path[last[0]:]
+                        plan.stations[last[1]] -= 1
+                        plan.skipped[last[1]] += 1
+                        begin = len(path)
                 if legs is None:  # no clear way there: the station is left out
                     plan.stations[key] -= 1
                     plan.skipped[key] += 1
                     continue
                 path += legs
             path.append(w)
+            last = (begin, key)
     plan.waypoints = path
+    plan.goal_mm = goal
+    for i in range(3):
+        shown = filler.covered(plan.photos, i)
+        for side in range(4):
+            plan.covered[(i, side)] = float(np.mean(shown[side])) if shown.shape[1] else 0.0
     if not plan.photos and done is None:
         raise PlanError(f"no station has a clear view at a stand-off of {d:g} m within the "
                         f"gimbal's {opt.max_gimbal_up_deg:g} deg upward pitch", "max_gimbal_up_deg")
@@ -550,36 +754,103 @@ class _Router:
         pa, pb = a.position, b.position
         if self._clear(np.stack([pa, pb])):
             return []
-        routes = []
-        if a.part == TOWER and b.part == TOWER:  # round the tower at the lower height
+        both_tower = a.part == TOWER and b.part == TOWER
+        blade = a.part if a.part == b.part and 0 <= a.part < 3 else -1
+        ea, eb = self._exits(a), self._exits(b)
+        # from the stations themselves, else first stepping out of where they are (a
+        # station just at the stand-off from one part and the clearance from another)
+        for ends in ([(pa, pb)],
+                     [(q, pb) for q in ea] + [(pa, q) for q in eb]
+                     + list(itertools.product(ea[:2], eb[:2]))):
+            tries = []
+            for qa, qb in ends:
+                for r in self._routes(qa, qb, both_tower, blade):
+                    pts = np.stack([pa, qa, *r, qb, pb])
+                    pts[:, 2] = np.maximum(pts[:, 2], self.min_alt)
+                    tries.append(_drop_close(pts))
+            for pts in sorted(tries, key=_length):  # the shortest clear route
+                if self._clear(pts):
+                    return [self._transit(p, b) for p in pts[1:-1]]
+        return None
+
+    def _exits(self, w: Waypoint) -> list[FloatArray]:
+        """Points :data:`BACK_OFF` metres from photo station ``w``: back against its view
+        (first), either way along its part's axis and round it; those themselves clear."""
+        if not w.photo:
+            return []
+        view = _view_dir(w)
+        axis = self.s.blades[w.part].axis if w.part < 3 else np.array([0.0, 0.0, 1.0])
+        across = np.cross(axis, view)
+        n = float(np.linalg.norm(across))
+        dirs = [-view, axis, -axis] + ([across / n, -across / n] if n > 1e-6 else [])
+        q = np.array([w.position + back * v for v in dirs for back in BACK_OFF])
+        ok = ((self.clear.rotor(q) >= self.d - 1e-6) & (self.clear.tower(q) >= self.t - 1e-6)
+              & (q[:, 2] >= self.min_alt - 1e-6))
+        return list(q[ok])
+
+    @staticmethod
+    def _transit(p: FloatArray, b: Waypoint) -> Waypoint:
+        """A transit point at ``p`` looking level towards ``b``."""
+        v = b.position - p
+        yaw = math.atan2(v[1], v[0]) if float(np.linalg.norm(v)) > 1e-9 else b.yaw
+        return Waypoint(np.asarray(p, dtype=np.float64), yaw, 0.0)
+
+    def _routes(self, pa: FloatArray, pb: FloatArray, tower: bool, blade: int
+                ) -> list[list[FloatArray]]:
+        """Transit points between ``pa`` and ``pb`` to try: none (straight),
+        round the blade (``blade``: both are stations of that blade, else -1), round the
+        tower at the lower height (``tower``: both are tower stations), through the
+        upwind or the downwind transit plane, across between them."""
+        routes: list[list[FloatArray]] = [[]]
+        if blade >= 0:
+            routes.append(self._round_blade(pa, pb, blade))
+        if tower:
             z = min(pa[2], pb[2])
             c = self.s.base[:2]
             ra, rb = pa[:2] - c, pb[:2] - c
             a0, a1 = math.atan2(ra[1], ra[0]), math.atan2(rb[1], rb[0])
             da = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
             rad = 0.5 * (float(np.linalg.norm(ra)) + float(np.linalg.norm(rb)))
-            arc = [np.array([c[0] + rad * math.cos(a0 + t * da), c[1] + rad * math.sin(a0 + t * da),
-                             z]) for t in np.linspace(0.0, 1.0, 7)]
-            routes.append(arc)
+            routes.append([np.array([c[0] + rad * math.cos(a0 + t * da),
+                                     c[1] + rad * math.sin(a0 + t * da), z])
+                           for t in np.linspace(0.0, 1.0, 7)])
         for plane in (self.up_off, self.down_off):
             routes.append([self._to_plane(pa, plane), self._to_plane(pb, plane)])
         for pa_plane, pb_plane in ((self.up_off, self.down_off), (self.down_off, self.up_off)):
             routes.append([self._to_plane(pa, pa_plane), self._to_plane(self.cross, pa_plane),
                            self._to_plane(self.cross, pb_plane), self._to_plane(pb, pb_plane)])
-        best: list[FloatArray] | None = None
-        for r in routes:
-            pts = np.stack([pa, *r, pb])
-            pts[:, 2] = np.maximum(pts[:, 2], self.min_alt)
-            pts = _drop_close(pts)
-            if self._clear(pts):
-                best = list(pts[1:-1])
-                break
-        if best is None:
-            return None
-        out = []
-        for p in best:
-            v = b.position - p
-            n = float(np.linalg.norm(v))
-            yaw = math.atan2(v[1], v[0]) if n > 1e-9 else b.yaw
-            out.append(Waypoint(np.asarray(p, dtype=np.float64), yaw, 0.0))
-        return out
+        return routes
+
+    def _round_blade(self, pa: FloatArray, pb: FloatArray, blade: int) -> list[FloatArray]:
+        """Points round blade ``blade``'s axis from ``pa``'s side of it to ``pb``'s, in the
+        middle of turns of at most :data:`ARC_STEP_DEG`, far enough out that the legs
+        between them keep the larger of the two distances from the axis (the legs from
+        ``pa`` and to ``pb`` run along that circle's tangents; the span changes evenly):
+        a straight leg between stations looking at the blade from directions a few
+        degrees apart cuts inside their distance from it."""
+        bl = self.s.blades[blade]
+        wa, wb = pa - bl.root, pb - bl.root
+        sa, sb = float(wa @ bl.axis), float(wb @ bl.axis)
+        ua, ub = wa - sa * bl.axis, wb - sb * bl.axis
+        ra, rb = float(np.linalg.norm(ua)), float(np.linalg.norm(ub))
+        if min(ra, rb) < 1e-9:
+            return []
+        angle = math.atan2(float(bl.axis @ np.cross(ua, ub)), float(ua @ ub))
+        n = max(1, math.ceil(abs(math.degrees(angle)) / ARC_STEP_DEG))
+        radius = max(ra, rb) / math.cos(0.5 * angle / n)
+        return [bl.root + (sa + t * (sb - sa)) * bl.axis
+                + radius * _rotate(ua / ra, bl.axis, t * angle)
+                for t in (np.arange(n) + 0.5) / n]
+
+
+def _length(p: FloatArray) -> float:
+    """Length of the polyline ``p`` (n, 3) [m]."""
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+
+
+def _view_dir(w: Waypoint) -> FloatArray:
+    """Unit direction of ``w``'s view."""
+    cp = math.cos(w.pitch)
+    return np.array([cp * math.cos(w.yaw), cp * math.sin(w.yaw), math.sin(w.pitch)])
+
+

@@ -28,15 +28,14 @@ MISSION_FORMATS = ("dji-wpml", "litchi", "qgc", "mavlink", "kml")
 GIMBAL_PITCH = Quantity("gimbal pitch", "deg", -180.0, 90.0)
 WAYPOINTS = Quantity("waypoints per mission", "", 2.0, 65535.0, integer=True)
 SPEED = Quantity("speed", "m/s", 0.0, 50.0, lo_open=True)
-FOCAL_MM = Quantity("focal length", "mm", 0.0, 2000.0, lo_open=True)
-SENSOR_MM = Quantity("sensor width", "mm", 0.0, 100.0, lo_open=True)
 PIXELS = Quantity("image size", "px", 24.0, 100000.0, integer=True)
 ENUM = Quantity("enumeration value", "", 0.0, 65535.0, integer=True)
 
 
 @dataclass(frozen=True)
 class PlatformCamera:
-    """A platform's camera: its name in the camera table, lens, sensor and image size."""
+    """A platform's camera: its name in the camera table, lens and sensor (the table's),
+    and image size."""
 
     name: str
     focal_length_mm: float
@@ -108,15 +107,13 @@ def _entry(key: str, data: Any, path: Path) -> Platform:
     camera = None
     if "camera" in data:
         c = data["camera"]
-        if not isinstance(c, dict) or set(c) != {"name", "focal_length_mm", "sensor_width_mm",
-                                                 "width", "height"}:
-            raise InputError("must give name, focal_length_mm, sensor_width_mm, width, height",
-                             path=path, field=f"{key}.camera")
-        camera = PlatformCamera(
-            str(c["name"]), FOCAL_MM.check(c["focal_length_mm"], path, field=f"{key}.camera"),
-            SENSOR_MM.check(c["sensor_width_mm"], path, field=f"{key}.camera"),
-            int(PIXELS.check(c["width"], path, field=f"{key}.camera.width")),
-            int(PIXELS.check(c["height"], path, field=f"{key}.camera.height")))
+        if not isinstance(c, dict) or set(c) != {"name", "width", "height"}:
+            raise InputError("must give name, width, height", path=path,
+                             field=f"{key}.camera")
+        camera = _camera(str(c["name"]),
+                         int(PIXELS.check(c["width"], path, field=f"{key}.camera.width")),
+                         int(PIXELS.check(c["height"], path, field=f"{key}.camera.height")),
+                         path, f"{key}.camera")
     wpml: dict[str, int] = {}
     if "wpml" in data:
         w = data["wpml"]
@@ -128,6 +125,21 @@ def _entry(key: str, data: Any, path: Path) -> Platform:
     return Platform(key, str(data["name"]), tuple(formats), lo, hi, waypoints, items,
                     SPEED.check(data["max_speed_m_s"], path, field=f"{key}.max_speed_m_s"),
                     camera, wpml, str(data["source"]))
+
+
+def _camera(name: str, width: int, height: int, path: Path, field: str) -> PlatformCamera:
+    """The platform's camera: the fixed lens ``name`` of the camera table
+    (:mod:`turbinefit.io.dji_cameras`, its lens and sensor), at a width it writes."""
+    from turbinefit.io.dji_cameras import dji_cameras
+
+    found = next((c for c in dji_cameras() if c.name == name), None)
+    if found is None:
+        raise InputError(f"{name!r} is not a camera of the camera table", path=path,
+                         field=field)
+    if not found.fixed_focal or width not in found.widths:
+        raise InputError(f"{name!r} is no fixed lens writing {width} px wide photos in the "
+                         "camera table", path=path, field=field)
+    return PlatformCamera(name, found.focal_range_mm[0], found.sensor_width_mm, width, height)
 
 
 @cache

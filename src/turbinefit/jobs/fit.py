@@ -22,6 +22,7 @@ from turbinefit import __version__
 from turbinefit.errors import InputError
 from turbinefit.eval.metrics import Accuracy, accuracy
 from turbinefit.flight import Flight
+from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import NonFiniteHeatmapError
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.fit_config import format_fit_config
@@ -165,6 +166,8 @@ def fit_folder(
     model: str | os.PathLike[str] | None = None,
     detect_progress: bool = False,
     detect_options: DetectOptions | None = None,
+    initial_poses: SE3 | None = None,
+    initial_turbine: TurbineParams | None = None,
 ) -> FitReport:
     """Fit the flight in ``flight_dir`` and write the results to ``out_dir``.
 
@@ -192,6 +195,10 @@ def fit_folder(
     Options: ``config`` (None = the defaults for the kind of heat-maps,
     :func:`turbinefit.jobs.sources.fit_config_for`), with the FitConfig fields of
     ``options`` set on top; the options used are written to ``config.yaml``.
+
+    ``initial_poses``, ``initial_turbine``: start from these instead of the flight's
+    ``keyframes.txt`` and ``turbine.yaml`` (e.g. a tracker's final estimates); the flight's
+    poses remain the measurements.
     """
     flight_dir = Path(flight_dir)
     out_dir = Path(out_dir)
@@ -219,7 +226,8 @@ def fit_folder(
             # absurd inputs overflow inside the solver: the verdict reports it (non-finite
             # numbers, no step), not numpy's warnings
             with np.errstate(over="ignore", invalid="ignore"):
-                result = fit(flight, cfg, callback=progress)
+                result = fit(flight, cfg, callback=progress, initial_poses=initial_poses,
+                             initial_turbine=initial_turbine)
         except NonFiniteHeatmapError as exc:
             raise InputError("heat-map contains NaN or inf",
                              source.where(exc.keyframe)) from None

@@ -59,6 +59,7 @@ from turbinefit.jobs.fit import fit_folder
 from turbinefit.jobs.outputs import OVERWRITE_HINT, summary_json
 from turbinefit.jobs.plan import format_waypoints_csv, photo_poses
 from turbinefit.mission import Mission, MissionConfig, MissionOutcome, mission_outcome, run_mission
+from turbinefit.mission.outcome import final_start
 from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
 from turbinefit.turbine.model import TurbineParams
 
@@ -230,7 +231,9 @@ def mission_folder(out_dir: str | os.PathLike[str], config: MissionConfig, *,
             mission.tracker.turbine, comment="turbinefit mission: the tracker's final "
             "estimate"), fsync=False)
         write_text_atomic(track / "latency.csv", _latency_csv(mission), fsync=False)
-        report = fit_folder(tmp / "flight", tmp / "fit", config.fit_config(), plots=plots)
+        poses, turbine = final_start(mission)
+        report = fit_folder(tmp / "flight", tmp / "fit", config.fit_config(), plots=plots,
+                            initial_poses=poses, initial_turbine=turbine)
         outcome = mission_outcome(mission, report.result)
         coverage_folder(tmp / "fit", tmp / "coverage", flight_dir=tmp / "flight",
                         camera=config.camera, max_gsd_mm=config.gsd_mm,

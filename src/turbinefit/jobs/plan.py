@@ -311,6 +311,10 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                     "from the solid (lower bounds), independent of the planner",
             "margin_m": round(check_margin_m, 3), "leg_step_m": LEG_STEP},
         "stations": stations, "skipped": skipped, "beyond_gimbal": steep,
+        "fill": {f"{PARTS[p]}/{side_names(p)[k]}": n for (p, k), n in plan.fill.items()},
+        "covered_mm_px": round(plan.goal_mm, 4),
+        "covered": {f"{PARTS[p]}/{side_names(p)[k]}": round(v, 4)
+                    for (p, k), v in plan.covered.items()},
         "blades": {bl.name: round(bl.clock_deg, 3) for bl in surface.blades},
         "georeferenced": georef is not None, "georeference": georeference,
     }

@@ -152,6 +152,11 @@ class MissionConfig:
             ``gnss``: the recorded GNSS poses give both.
         replan_m: replan when the turbine estimate's model points moved this far [m].
         replan_every: and at most once every this many photos.
+        overlap: the share of a photo's footprint its neighbours along the part share.
+        safety_sigmas: in closed loop, the plan keeps the stand-off plus this many times the
+            tracker's standard deviation of the drone's position (its worst direction), as
+            far as the camera still reaches the GSD, and widens the overlap by as much
+            (0: the stand-off and the overlap alone).
         max_photos: end the mission after this many inspection photos (a short mission).
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
@@ -173,6 +178,8 @@ class MissionConfig:
     odometry: Literal["vio", "gnss"] = "vio"
     replan_m: float = 0.5
     replan_every: int = 3
+    overlap: float = 0.3
+    safety_sigmas: float = 2.0
     max_photos: int = 100_000
     speed_m_s: float = 4.0
     photo_s: float = 2.0
@@ -269,6 +276,8 @@ class Mission:
         timings: seconds per stage.
         replan_errors: why the planner refused each replan it refused.
         blade_pitch: the blades' pitch as the renderer draws them [rad].
+        estimates_rejected: replans not made because the tracker's turbine was not
+            :func:`plausible`.
     """
 
     config: MissionConfig
@@ -289,6 +298,7 @@ class Mission:
     replan_errors: list[str] = field(default_factory=list)
     blade_pitch: float = 0.0
     plan_turbines: list[TurbineParams] = field(default_factory=list)
+    estimates_rejected: int = 0
 
     @property
     def inspection(self) -> list[Keyframe]:
@@ -462,6 +472,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
 
     fit_cfg = cfg.fit_config()
     here: FloatArray | None = None
+    last_est: TrackEstimate | None = None
     if cfg.closed_loop:
         # -- the approach orbit, on GNSS alone
         orbit = orbit_poses(typed_in, cfg.camera, cfg.orbit_photos)
@@ -472,10 +483,12 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         timings["orbit_s"] = time.perf_counter() - t_start
         # -- the initial turbine: init near the typed-in base, refined by a fit of the orbit
         t0 = time.perf_counter()
-        initial, init_note = _initial_turbine(keyframes, cfg.map_camera(), typed_in, fit_cfg)
+        initial, init_note = _initial_turbine(keyframes, cfg.map_camera(), typed_in, fit_cfg,
+                                              cfg.initial_error)
         tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
         for kf in keyframes:
-            kf.causal = _update(tracker, kf, rtk).world_T_cam
+            last_est = _update(tracker, kf, rtk)
+            kf.causal = last_est.world_T_cam
         nav.correct(keyframes[-1].recorded, tracker.world_T_cam()[len(keyframes) - 1])
         here = nav.believed(keyframes[-1].recorded).translation
         timings["init_s"] = time.perf_counter() - t0
@@ -484,7 +497,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
 
     # -- the plan, then waypoint by waypoint
-    options = PlanOptions(cfg.standoff, cfg.gsd_mm, max_gimbal_up_deg=cfg.max_gimbal_up_deg)
+    options = _options(cfg, _position_sigma(tracker, last_est) if cfg.closed_loop else 0.0)
     t0 = time.perf_counter()
     planned_for = tracker.turbine
     plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
@@ -492,7 +505,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     plans = [plan]
     plan_turbines = [planned_for]
     done: set[tuple[int, int, float]] = set()
-    replans = failures = since = 0
+    replans = failures = since = rejected = 0
     replan_errors: list[str] = []
     queue = list(plan.waypoints[1:] if here is not None else plan.waypoints)
     total = len(plan.photos)
@@ -512,13 +525,21 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         since += 1
         if progress is not None:
             progress("inspection", len(done), total)
-        if (not cfg.closed_loop or since < cfg.replan_every
-                or _moved(planned_for, tracker.turbine) < cfg.replan_m):
+        if not cfg.closed_loop or since < cfg.replan_every:
+            continue
+        wanted = _options(cfg, _position_sigma(tracker, est))
+        if (_moved(planned_for, tracker.turbine) < cfg.replan_m
+                and abs(wanted.standoff - options.standoff) < cfg.replan_m
+                and abs(wanted.overlap - options.overlap) < 0.1):
+            continue
+        if not plausible(tracker.turbine, typed_in, cfg.initial_error):
+            rejected += 1  # the tracker has lost its way: keep flying the plan in use
+            since = 0
             continue
         t0 = time.perf_counter()
         since = 0
         try:
-            again = _replan(TurbineSurface(tracker.turbine), cfg, options, done, plan,
+            again = _replan(TurbineSurface(tracker.turbine), cfg, wanted, done,
                             nav.believed(kf.recorded))
         except PlanError as e:
             failures += 1
@@ -529,6 +550,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             continue
         replans += 1
         planned_for = tracker.turbine
+        options = wanted
         plan = again
         plans.append(plan)
         plan_turbines.append(planned_for)
@@ -538,7 +560,33 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     return Mission(cfg, truth, typed_in, initial, defects, keyframes, np.array(path_true),
                    np.array(path_rec), np.array(path_est), plans, replans, failures,
                    tracker, init_note, timings, replan_errors, photos.scene.blade_pitch,
-                   plan_turbines)
+                   plan_turbines, rejected)
+
+
+def _position_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float:
+    """The largest standard deviation [m] of the latest pose's position, in its worst
+    direction (0 if unknown)."""
+    cov = None if est is None else est.pose_covariance
+    if cov is None:
+        return 0.0
+    w = np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))
+    return float(math.sqrt(max(float(w[-1]), 0.0)))
+
+
+def _options(cfg: MissionConfig, sigma: float) -> PlanOptions:
+    """The plan's options for a pose known to a standard deviation ``sigma`` [m]: the
+    stand-off asked for, widened by ``safety_sigmas`` times ``sigma`` (at most half the
+    stand-off, and no further than the camera still reaches the GSD from), and the
+    photos' overlap along the part widened by as much (at most 0.7), so that a photo
+    taken that far off its station still meets its neighbours."""
+    f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
+    reach = cfg.gsd_mm * f / 1000.0 - 0.5  # the planner flies its check's margin further
+    widen = min(cfg.safety_sigmas * sigma, 0.5 * cfg.standoff)
+    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach))
+    foot = min(cfg.camera.width, cfg.camera.height) * standoff / f
+    overlap = min(0.7, cfg.overlap + cfg.safety_sigmas * sigma / foot)
+    return PlanOptions(round(standoff, 1), cfg.gsd_mm, overlap=round(overlap, 2),
+                       max_gimbal_up_deg=cfg.max_gimbal_up_deg)
 
 
 def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
@@ -549,22 +597,35 @@ def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
 
 
 def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
-            done: set[tuple[int, int, float]], previous: Plan, here: SE3) -> Plan | None:
-    """The rest of the path planned again from ``surface`` (the current estimate): the
-    stations of ``previous`` photographed (``done``) left out by their part, side and span
-    within half a station's spacing, the path starting at the believed pose ``here``. If
-    the new estimate puts ``here`` within the stand-off, the path starts by backing away
-    along the view until it keeps it (a transit point). None if nothing is left to
-    photograph."""
-    spacing = _spacing(previous)
+            done: set[tuple[int, int, float]], here: SE3) -> Plan | None:
+    """The rest of the path planned again from ``surface`` (the current estimate): a
+    station of the new plan is left out if the photos taken (``done``: part, side, span)
+    already cover its share of the side (its span, half a station's spacing either way,
+    within the footprints of those photos along the part), and the path starts at the
+    believed pose ``here``. If the new estimate puts ``here`` within the stand-off, the
+    path starts by backing away along the view until it keeps it (a transit point). None
+    if nothing is left to photograph."""
+    f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
+    foot = min(cfg.camera.width, cfg.camera.height) * options.standoff / f  # along the part
+    step = max((1.0 - options.overlap) * foot, 0.1)
+    taken: dict[tuple[int, int], list[float]] = {}
+    for p, s, x in done:
+        taken.setdefault((p, s), []).append(x)
 
     def photographed(part: int, side: int, span: float) -> bool:
-        return any(p == part and s == side and abs(x - span) < 0.5 * spacing.get((p, s), 1.0)
-                   for p, s, x in done)
+        spans = sorted(taken.get((part, side), []))
+        lo, hi = span - 0.5 * step, span + 0.5 * step
+        for x in spans:  # the union of the footprints, swept from below
+            if x - 0.5 * foot > lo:
+                return False
+            lo = max(lo, x + 0.5 * foot)
+            if lo >= hi:
+                return True
+        return False
 
     samples = solid_samples(surface)
     start = here.translation
-    need = cfg.standoff + check_margin(samples) + 0.1
+    need = options.standoff + check_margin(samples) + 0.1
     backward = -here.rotation_matrix()[:, 2]
     retreat: list[Waypoint] = []
     for _ in range(20):
@@ -581,25 +642,33 @@ def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
     return plan
 
 
-def _spacing(plan: Plan) -> dict[tuple[int, int], float]:
-    """The spacing [m] of each side's stations in ``plan`` (their least difference)."""
-    out: dict[tuple[int, int], list[float]] = {}
-    for w in plan.photos:
-        out.setdefault((w.part, w.side), []).append(w.span)
-    gaps = {}
-    for key, spans in out.items():
-        s = np.sort(np.asarray(spans))
-        d = np.diff(s)
-        d = d[d > 1e-6]
-        gaps[key] = float(d.min()) if d.size else 1.0
-    return gaps
+def plausible(estimate: TurbineParams, typed_in: TurbineParams, error: InitialError,
+              factor: float = 3.0) -> bool:
+    """Whether ``estimate`` lies within ``factor`` times the typed-in turbine's error bounds
+    of it (base, heading, blade rotation modulo a third of a turn, sizes): an estimate
+    beyond them is not trusted (an approach photographed from afar can mistake the rotor's
+    side, or a tracker lose its way) and the typed-in turbine stands."""
+    e, t = estimate.to_vector(), typed_in.to_vector()
+
+    def angle(a: float, b: float, period: float) -> float:
+        return abs((a - b + period / 2) % period - period / 2)
+
+    base = math.hypot(e[0] - t[0], e[1] - t[1])
+    sizes = [abs(e[i] / t[i] - 1.0) for i in (2, 6) if t[i] > 0]
+    return bool(base <= factor * error.base_m * math.sqrt(2.0) + 1.0
+                and angle(e[3], t[3], 2 * math.pi) <= math.radians(factor * error.heading_deg)
+                and angle(e[5], t[5], 2 * math.pi / 3)
+                <= math.radians(factor * error.blade_rotation_deg)
+                and all(s <= factor * error.size + 0.02 for s in sizes))
 
 
 def _initial_turbine(keyframes: list[Keyframe], camera: PinholeCamera,
-                     typed_in: TurbineParams, config: FitConfig) -> tuple[TurbineParams, str]:
+                     typed_in: TurbineParams, config: FitConfig,
+                     error: InitialError) -> tuple[TurbineParams, str]:
     """The turbine the plan starts from: ``init`` on the orbit's ``keyframes`` (near the
     typed-in base, with its sizes as the type's), then a batch fit of the orbit
-    (``config``); what ``init`` cannot determine is the typed-in value."""
+    (``config``) from it, or from the typed-in turbine when ``init`` cannot tell or its
+    answer is not :func:`plausible`; a fit that fails or is not plausible is not used."""
     heatmaps = HeatmapStack(np.stack([k.heatmaps for k in keyframes]))
     world_T_cam = SE3(np.stack([k.recorded.wxyz_xyz for k in keyframes]))
     odometry = None
@@ -609,16 +678,23 @@ def _initial_turbine(keyframes: list[Keyframe], camera: PinholeCamera,
     prior = TurbinePrior(near_xy=(typed_in.base_x, typed_in.base_y),
                          hub_height=typed_in.tower_height, blade_length=typed_in.blade_length,
                          nacelle_length=typed_in.nacelle_length)
+    starts: list[tuple[TurbineParams, str]] = []
     try:
-        start = initial_turbine(heatmaps, camera, world_T_cam, prior).turbine
-        note = "init from the approach orbit"
+        found = initial_turbine(heatmaps, camera, world_T_cam, prior).turbine
+        if plausible(found, typed_in, error):
+            starts.append((found, "init from the approach orbit"))
+        else:
+            starts.append((typed_in, "the typed-in turbine (init from the approach orbit "
+                           "was implausible)"))
     except NotDetermined as e:
-        start = typed_in
-        note = f"the typed-in turbine (init: {e})"
-    flight = Flight(camera=camera, timestamps=np.array([k.timestamp for k in keyframes]),
-                    world_T_cam=world_T_cam, heatmaps=heatmaps, turbine=start,
-                    odometry=odometry)
-    result = fit(flight, config)
-    if result.verdict == "failed":
-        return start, note + "; the orbit's fit failed, not used"
-    return result.turbine, note + ", refined by a fit of the orbit"
+        starts.append((typed_in, f"the typed-in turbine (init: {e})"))
+    if starts[0][0] is not typed_in:
+        starts.append((typed_in, "the typed-in turbine"))
+    for start, note in starts:
+        flight = Flight(camera=camera, timestamps=np.array([k.timestamp for k in keyframes]),
+                        world_T_cam=world_T_cam, heatmaps=heatmaps, turbine=start,
+                        odometry=odometry)
+        result = fit(flight, config)
+        if result.verdict != "failed" and plausible(result.turbine, typed_in, error):
+            return result.turbine, note + ", refined by a fit of the orbit"
+    return typed_in, "the typed-in turbine (the orbit's fits failed)"

@@ -37,7 +37,7 @@ from turbinefit.inspection.clearance import ROTOR, STRUCTURE, path_clearance, so
 from turbinefit.inspection.coverage import COVERED_PARTS, flight_coverage, side_names
 from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, locate_box
 from turbinefit.io.defects import LocatedDamage
-from turbinefit.mission.loop import Keyframe, Mission
+from turbinefit.mission.loop import Keyframe, Mission, plausible
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.turbine.model import TurbineParams
 
@@ -98,20 +98,32 @@ def locate_defects(kfs: list[Keyframe], poses: SE3, turbine: TurbineParams,
     return out
 
 
+def final_start(mission: Mission) -> tuple[SE3 | None, TurbineParams]:
+    """Where the final fit starts: the tracker's final poses and turbine if its turbine is
+    plausible (:func:`~turbinefit.mission.loop.plausible`), else the recorded poses (None)
+    and the typed-in turbine."""
+    turbine = mission.tracker.turbine
+    if plausible(turbine, mission.typed_in, mission.config.initial_error):
+        return mission.tracker.world_T_cam(), turbine
+    return None, mission.typed_in
+
+
 def final_fit(mission: Mission) -> FitResult:
-    """A batch fit of every keyframe of ``mission`` from the recorded poses and the
-    tracker's final turbine (the tracker's options), as ``turbinefit fit`` of the flight."""
+    """A batch fit of every keyframe of ``mission`` from the recorded poses (the tracker's
+    options), started from :func:`final_start`, as ``turbinefit fit`` of the flight does."""
     kfs = mission.keyframes
     rtk = mission.config.gnss == "rtk"
     flight = Flight(camera=mission.config.map_camera(),
                     timestamps=np.array([k.timestamp for k in kfs]),
                     world_T_cam=_poses(kfs, "recorded"),
                     heatmaps=HeatmapStack(np.stack([k.heatmaps for k in kfs])),
-                    turbine=mission.tracker.turbine,
+                    turbine=mission.typed_in,
                     odometry=_poses(kfs, "odometry") if kfs[0].odometry is not None else None,
                     gt_world_T_cam=_poses(kfs, "true"), gt_turbine=mission.truth,
                     position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None)
-    return fit(flight, mission.config.fit_config())
+    poses, turbine = final_start(mission)
+    return fit(flight, mission.config.fit_config(), initial_poses=poses,
+               initial_turbine=turbine)
 
 
 def mission_outcome(mission: Mission, result: FitResult | None = None) -> MissionOutcome:

@@ -23,7 +23,7 @@ REFERENCE_WIDTH = 320
 #: (:attr:`FitConfig.pixel_scale`); ``robust_scale`` is in units of the whitened residual,
 #: so it follows ``pixel_sigma``.
 PIXEL_FIELDS = ("pixel_sigma", "corr_radius", "line_search", "border_margin",
-                "warmup_pixel_sigma")
+                "warmup_pixel_sigma", "edge_reach")
 
 
 def pixel_scale_for(width: int) -> float:
@@ -78,6 +78,26 @@ class FitConfig:
     measured when it has GPS/IMU keyframes only. fit, FitProblem and the Tracker resolve
     auto from their data (resolve_pair_frame); results record the frame used. See
     turbinefit.costs.pairwise."""
+    lambda_motion: float = 0.0
+    """Weight of the tie-point term (turbinefit.costs.relative_motion): the relative
+    rotation and direction of motion between consecutive photos measured from their tie
+    points, where the keyframes come with such measurements (``Flight.motions``, measured
+    by turbinefit.tiepoints); 0 = off, the default: on the benchmark flights it made the
+    fits worse (docs/benchmarks.md, "Precision beyond the net")."""
+    motion_robust_scale: float = 3.0
+    """Scale of the Cauchy loss on each tie-point edge's whitened residual (5 values)."""
+    lambda_edges: float = 0.0
+    """Weight of the edge term (turbinefit.costs.edges): the tower's and blades'
+    silhouette edges searched in the photo at its own resolution along the normals of
+    the projected lines, where the keyframes come with their grey photos
+    (``Flight.photos``) and lines=corr; 0 = off, the default: on the benchmark flights it
+    made the fits worse (docs/benchmarks.md, "Precision beyond the net")."""
+    edge_sigma: float = 2.0
+    """Noise of an edge midpoint [px of the photo as the edge term reads it] (of 0.5, 1
+    and 2, 2 fitted three 1280 x 960 photo flights best)."""
+    edge_reach: float = 2.0
+    """How far the edge midpoint may lie from the net's line correspondence [px of maps
+    320 px wide]."""
     pair_information: tuple[float, ...] | None = None
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
@@ -180,12 +200,15 @@ class FitConfig:
                 raise bad(name, "must be a whole number >= 1")
         positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
                     "line_search", "robust_scale", "gps_sigma",
-                    "warmup_pixel_sigma", "warmup_function_tolerance")
+                    "warmup_pixel_sigma", "warmup_function_tolerance", "motion_robust_scale",
+                    "edge_sigma", "edge_reach")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise bad(name, "must be a positive number")
-        for name in ("lambda_points", "lambda_lines", "lambda_pair", "border_margin",
+        for name in ("lambda_points", "lambda_lines", "lambda_pair", "lambda_motion",
+                     "lambda_edges",
+                     "border_margin",
                      "warmup_stiffness",
                      "pair_sigma_t_per_m"):
             v = getattr(self, name)

@@ -4,7 +4,7 @@ Unknowns: every keyframe pose ``world_T_cam[k]`` (6 local coordinates each, see
 :meth:`turbinefit.geometry.se3.SE3.retract`) and theta (7). Cost (Ceres' convention)::
 
     E = 1/2 sum rho(s_image) + 1/2 sum |r_pair|^2 + 1/2 sum |r_prior|^2
-        + 1/2 sum |r_position|^2
+        + 1/2 sum |r_position|^2 + 1/2 sum rho(|r_motion|^2)
 
 with, per projected model point or line sample, ``s`` the heat-map cost of
 :mod:`turbinefit.costs.heatmap_cost` (interp) or the squared whitened distance to a
@@ -13,7 +13,11 @@ correspondence of :mod:`turbinefit.costs.correspondence` (corr), weighted lambda
 :mod:`turbinefit.costs.pairwise` (lambda) between consecutive keyframes; and, with
 ``gauge="gps"``, absolute position priors; and, when the keyframes come with position
 standard deviations (``position_sigma``, an RTK flight's ``keyframes_sigma.csv``), a
-position prior per keyframe with them (:mod:`turbinefit.costs.position_prior`).
+position prior per keyframe with them (:mod:`turbinefit.costs.position_prior`); and, when
+the keyframes come with relative motions measured by tie points between consecutive photos
+(``motions``), the tie-point term between those keyframes
+(:mod:`turbinefit.costs.relative_motion`, weight ``lambda_motion``), which like the
+pairwise term only couples consecutive poses.
 
 Each image term gives, per point, the gradient ``g`` and a positive semi-definite Hessian
 model ``H`` of its cost w.r.t. the point's pixel (exact Gauss-Newton for corr, see
@@ -44,19 +48,45 @@ from turbinefit.costs.correspondence import (
     find_line_correspondences,
     find_point_correspondences,
 )
+from turbinefit.costs.edges import PhotoStack, find_edge_correspondences
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.position_prior import position_prior_residuals
 from turbinefit.costs.projection import project_points
+from turbinefit.costs.relative_motion import RelativeMotions, relative_motion_residuals
 from turbinefit.costs.robust import RobustLoss
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.marginal import GaussianPrior
-from turbinefit.turbine.model import LINES, POINT_CHANNELS, line_samples, model_points
+from turbinefit.turbine.model import (
+    LINES,
+    POINT_CHANNELS,
+    LineSampling,
+    line_samples,
+    model_points,
+)
+from turbinefit.turbine.solid import TurbineSolid, blade_profile
 
 FloatArray = NDArray[np.float64]
+
+#: The lines whose silhouettes the edge term searches: the tower and the three blades.
+EDGE_LINES = (0, 2, 3, 4)
+#: Photos less than this many times the maps' size are not searched for edges: at the
+#: maps' own resolution the net's line correspondences are the more precise (0.19-0.24
+#: against 0.42 map px off the true lines, ``benchmarks/bench_precision.py``).
+MIN_EDGE_SCALE = 2.0
+#: Line samples nearer the camera than this [m] are not searched for edges.
+MIN_EDGE_DEPTH = 1.0
+
+
+def _depths(world_T_cam: SE3, points: FloatArray) -> FloatArray:
+    """(N, M) depths along each camera's optical axis of world ``points`` (M, 3), shared,
+    or (N, M, 3), per camera."""
+    R = world_T_cam.rotation_matrix()  # (N, 3, 3)
+    d = (points if points.ndim == 3 else points[None]) - world_T_cam.translation[:, None]
+    return np.einsum("nk,nmk->nm", R[:, :, 2], d)
 
 
 class ProblemData(Protocol):
@@ -92,6 +122,16 @@ class ProblemData(Protocol):
         """(N, 3) standard deviations [m] of the positions of ``world_T_cam`` (absolute
         position priors), or None: no such priors."""
 
+    @property
+    def photos(self) -> PhotoStack | None:
+        """(N,) the keyframes' grey photos for the edge term, or None
+        (:mod:`turbinefit.costs.edges`)."""
+
+    @property
+    def motions(self) -> RelativeMotions | None:
+        """(N,) relative motions measured by tie points between consecutive photos, or
+        None (:mod:`turbinefit.costs.relative_motion`)."""
+
 
 @dataclass
 class Samples:
@@ -125,10 +165,13 @@ class Correspondences:
     """(N, M, 2) unit image normal each line target was searched along."""
     line_fractions: FloatArray | None = None
     """(N, 5, n) where each keyframe samples each line (visible-part sampling), or None."""
+    edge_target: FloatArray | None = None
+    """(N, M, 2) silhouette midpoints of the line samples found in the photos (edge term)."""
+    edge_found: NDArray[np.bool_] | None = None
 
     def count(self) -> int:
         n = 0
-        for f in (self.point_found, self.line_found):
+        for f in (self.point_found, self.line_found, self.edge_found):
             if f is not None:
                 n += int(f.sum())
         return n
@@ -227,6 +270,22 @@ class FitProblem:
         #: (N, 3) standard deviations of the keyframes' position priors, or None
         self.position_sigma = (None if sigma is None
                                else np.asarray(sigma, dtype=np.float64)[self.keyframes].copy())
+        motions = getattr(data, "motions", None)
+        #: the tie-point measurements of the used keyframes (entry k: from k-1 to k), or
+        #: None (none measured, or lambda_motion 0)
+        self.motions: RelativeMotions | None = (
+            None if motions is None or config.lambda_motion == 0.0
+            else motions.take(self.keyframes))
+        if self.motions is not None and not self.motions.valid.any():
+            self.motions = None
+        if self.motions is not None:
+            self._motion_sqrt_info = math.sqrt(config.lambda_motion) * self.motions.sqrt_info
+            self._motion_loss = RobustLoss("cauchy", config.motion_robust_scale)
+        #: the flight's photos for the edge term (indexed by ``keyframes``), or None
+        photos = getattr(data, "photos", None)
+        self.photos: PhotoStack | None = (
+            photos if config.lambda_edges > 0 and config.lines == "corr"
+            and photos is not None and photos.scale >= MIN_EDGE_SCALE else None)
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
         self._line_index = np.repeat(np.arange(len(LINES)), n)
@@ -322,7 +381,40 @@ class FitProblem:
             out.line_target, out.line_found = find_line_correspondences(
                 self.data.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
                 usable, cfg.px("line_search"), cfg.corr_threshold, self.search_step)
+            if self.photos is not None:
+                out.edge_target, out.edge_found = self._edge_correspondences(
+                    poses, theta, S, out.line_fractions, out.line_target, out.line_found,
+                    normal)
         return out
+
+    def _edge_correspondences(self, poses: SE3, theta: FloatArray, S: FloatArray,
+                              fractions: FloatArray | None, centre: FloatArray,
+                              found: NDArray[np.bool_], normal: FloatArray
+                              ) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """The edge term's correspondences of the tower's and blades' line samples: the
+        silhouette's midpoint in the photo near the net's line correspondence, searched
+        for with the part's expected half-width at the sample's depth."""
+        assert self.photos is not None
+        N = self.num_keyframes
+        n = self.config.samples_per_line
+        f = (np.broadcast_to(LineSampling(n).fractions(), (N, len(LINES), n))
+             if fractions is None else fractions)
+        # half-widths [m] of each line's cross-section at its samples: (N, 5, n, 2)
+        solid = TurbineSolid(theta, self.config.geometry)
+        hw = np.zeros((N, len(LINES), n, 2))
+        r = solid.r0 + (solid.r1 - solid.r0) * f[:, 0]
+        hw[:, 0, :, 0] = hw[:, 0, :, 1] = r
+        A, Bt = blade_profile(f[:, 2:].astype(np.float32), solid.b)
+        hw[:, 2:, :, 0] = Bt
+        hw[:, 2:, :, 1] = A
+        half_width = hw.reshape(N, -1, 2)
+        edge_line = np.isin(self._line_index, EDGE_LINES)
+        depth = _depths(poses, S)
+        px_per_m = self.data.camera.fx / np.maximum(depth, 1e-3)
+        usable = found & edge_line[None] & (depth > MIN_EDGE_DEPTH)
+        return find_edge_correspondences(
+            self.photos, self.keyframes, centre, normal, usable,
+            half_width * px_per_m[..., None], self.config.px("edge_reach"))
 
     def pairwise_edge(self, poses: SE3, edge: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The whitened residual (6,) of pairwise edge ``edge`` (between the problem's
@@ -333,7 +425,24 @@ class FitProblem:
         r, Ji, Jj = pairwise_residuals(poses[e], poses[edge + 1:edge + 2],
                                        self._measured_rel[e], self._sqrt_info[e], True, frames)
         assert Ji is not None and Jj is not None
+        if self.motions is not None and self.motions.valid[edge + 1]:
+            rm, Jim, Jjm = self._motion_terms(poses, np.array([edge]), True)[1:]
+            assert Jim is not None and Jjm is not None
+            return (np.concatenate([r[0], rm[0]]), np.concatenate([Ji[0], Jim[0]]),
+                    np.concatenate([Jj[0], Jjm[0]]))
         return r[0], Ji[0], Jj[0]
+
+    def _motion_terms(self, poses: SE3, edges: NDArray[np.int_], with_jacobian: bool
+                      ) -> tuple[float, FloatArray, FloatArray | None, FloatArray | None]:
+        """The tie-point term of ``edges`` (between the problem's keyframes e and e + 1,
+        each with a measurement): cost, robustified residuals (E, 5) and Jacobians."""
+        assert self.motions is not None
+        m = self.motions
+        j = edges + 1
+        r, rho, Ji, Jj = relative_motion_residuals(
+            poses[edges], poses[j], m.i_q_j[j], m.i_dir_j[j], self._motion_sqrt_info[j],
+            self._motion_loss, with_jacobian)
+        return 0.5 * float(rho.sum()), r, Ji, Jj
 
     # ------------------------------------------------------------------------------
     def _image_block(self, keyframes: NDArray[np.int_], kind: str, smp: Samples,
@@ -399,13 +508,20 @@ class FitProblem:
         pts, lns = self.model(theta, with_jacobian, corr.line_fractions)
         terms: dict[str, float] = {}
         in_view: dict[str, int] = {}
-        blocks = (
+        blocks: list[tuple[str, str, Samples, NDArray[np.int_], float, FloatArray | None,
+                           NDArray[np.bool_] | None, FloatArray | None]] = [
             ("points", cfg.points, pts, POINT_CHANNELS, cfg.lambda_points,
              corr.point_target, corr.point_found, None),
             ("lines", cfg.lines, lns, self._line_channels, cfg.lambda_lines,
              corr.line_target, corr.line_found,
              corr.line_normal if cfg.line_residual == "normal" else None),
-        )
+        ]
+        if self.photos is not None and corr.edge_found is not None:
+            # whitened by edge_sigma photo px: the corr kernel divides by pixel_sigma map px
+            sigma_map = cfg.edge_sigma / self.photos.scale
+            blocks.append(("edges", "corr", lns, self._line_channels,
+                           cfg.lambda_edges * (cfg.px("pixel_sigma") / sigma_map) ** 2,
+                           corr.edge_target, corr.edge_found, corr.line_normal))
         N = self.num_keyframes
         JtHJ = np.zeros((N, 13, 13)) if with_jacobian else None
         g_u = np.zeros((N, 13)) if with_jacobian else None
@@ -460,6 +576,12 @@ class FitProblem:
             rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self._measured_rel,
                                             self._sqrt_info, with_jacobian, self._pair_frames)
             terms["pairwise"] = 0.5 * float(np.sum(rp * rp))
+        motion_edges = (np.flatnonzero(self.motions.valid[1:])
+                        if self.motions is not None and N > 1 else np.zeros(0, dtype=np.int64))
+        if motion_edges.size:
+            terms["motion"], rmo, Jim, Jjm = self._motion_terms(poses, motion_edges,
+                                                                with_jacobian)
+            n_res += rmo.size
         use_prior = cfg.gauge == "gps" and cfg.mode != "turbine"
         if use_prior:
             rg = (poses.translation - self.prior_position) / cfg.gps_sigma
@@ -493,6 +615,16 @@ class FitProblem:
             B = JjT @ Ji
             g_p[:-1] += np.einsum("eij,ei->ej", Ji, rp)
             g_p[1:] += np.einsum("eij,ei->ej", Jj, rp)
+        if motion_edges.size:
+            assert Jim is not None and Jjm is not None
+            e = motion_edges
+            JiT = np.swapaxes(Jim, 1, 2)
+            JjT = np.swapaxes(Jjm, 1, 2)
+            np.add.at(D, e, JiT @ Jim)
+            np.add.at(D, e + 1, JjT @ Jjm)
+            np.add.at(B, e, JjT @ Jim)
+            np.add.at(g_p, e, np.einsum("eij,ei->ej", Jim, rmo))
+            np.add.at(g_p, e + 1, np.einsum("eij,ei->ej", Jjm, rmo))
         if use_prior:
             D[:, [0, 1, 2], [0, 1, 2]] += 1.0 / cfg.gps_sigma**2
             g_p[:, :3] += rg / cfg.gps_sigma

@@ -62,6 +62,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.costs.relative_motion import RelativeMotions
 from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
@@ -454,7 +455,8 @@ class Tracker:
 
     def update(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating], *,
                odometry: SE3 | None = None,
-               position_sigma: NDArray[np.floating] | None = None) -> TrackEstimate:
+               position_sigma: NDArray[np.floating] | None = None,
+               motion: RelativeMotions | None = None) -> TrackEstimate:
         """Add one keyframe and refine; returns the estimate for it.
 
         Args:
@@ -472,6 +474,10 @@ class Tracker:
                 along the world axes (RTK): an absolute position prior on the keyframe
                 (:mod:`turbinefit.costs.position_prior`). Given for every keyframe or
                 for none.
+            motion: the relative motion from the previous keyframe measured by tie
+                points (one entry of :class:`~turbinefit.costs.relative_motion.
+                RelativeMotions`, e.g. from :class:`turbinefit.tiepoints.MotionMeter`),
+                or None: the tie-point term (``lambda_motion``) between the two.
 
         Raises:
             KeyframeError: on input that is out of order, of the wrong shape or not finite
@@ -480,6 +486,7 @@ class Tracker:
         t0 = time.perf_counter()
         maps = self._check(float(timestamp), world_T_cam, heatmaps, odometry)
         sigma = self._check_sigma(position_sigma)
+        motion = _one_motion(motion, len(self._times))
         if self._has_odometry is None:  # the first keyframe resolves pair_frame="auto"
             self._has_odometry = odometry is not None
             self.config = dataclasses.replace(
@@ -500,7 +507,7 @@ class Tracker:
                             world_T_cam if odometry is None else odometry,
                             self.config.fit.pair_frame)
             self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence,
-                                    odometry, sigma)
+                                    odometry, sigma, motion)
 
         cfg = self.config
         stages = []
@@ -656,3 +663,10 @@ class Tracker:
         cfg = self.config
         self._run([(self._refine_cfg, cfg.finish_rounds, cfg.finish_iterations)])
         return self.turbine
+
+
+def _one_motion(motion: RelativeMotions | None, index: int) -> RelativeMotions | None:
+    """A keyframe's tie-point motion, checked to be one entry."""
+    if motion is not None and len(motion) != 1:
+        raise KeyframeError(index, f"motion must hold one entry, got {len(motion)}")
+    return motion

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.costs.edges import PhotoStack
+from turbinefit.costs.relative_motion import RelativeMotions
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
@@ -35,6 +37,9 @@ class Keyframes:
             measurements; None: those of ``world_T_cam``.
         position_sigma: (N, 3) standard deviations [m] of the positions of
             ``world_T_cam`` (absolute position priors), or None.
+        motions: (N,) relative motions measured by tie points (entry k: from keyframe
+            k-1 to k), or None.
+        photos: (N,) grey photos for the edge term, or None.
     """
 
     camera: PinholeCamera
@@ -43,6 +48,8 @@ class Keyframes:
     heatmaps: HeatmapStack
     odometry: SE3 | None = None
     position_sigma: FloatArray | None = None
+    motions: RelativeMotions | None = None
+    photos: PhotoStack | None = None
 
     @property
     def num_keyframes(self) -> int:
@@ -77,23 +84,29 @@ class TrackWindow:
     def first(camera: PinholeCamera, index: int, timestamp: float, measured: SE3,
               heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
               odometry: SE3 | None = None,
-              position_sigma: FloatArray | None = None) -> TrackWindow:
+              position_sigma: FloatArray | None = None,
+              motion: RelativeMotions | None = None) -> TrackWindow:
         """A window of one keyframe: its measured pose, heat-maps, estimate and, if the
-        flight has them, its odometry pose and position standard deviations (3,)."""
+        flight has them, its odometry pose, position standard deviations (3,) and its
+        relative motion from the keyframe before (one entry)."""
         data = Keyframes(camera, np.array([timestamp], dtype=np.float64),
                          SE3(measured.wxyz_xyz[None].copy()), HeatmapStack([heatmaps]),
                          None if odometry is None else SE3(odometry.wxyz_xyz[None].copy()),
                          None if position_sigma is None
-                         else np.asarray(position_sigma, dtype=np.float64).reshape(1, 3))
+                         else np.asarray(position_sigma, dtype=np.float64).reshape(1, 3),
+                         motion)
         return TrackWindow(np.array([index], dtype=np.int64), data,
                            SE3(world_T_cam.wxyz_xyz[None].copy()), np.array([evidence]))
 
     def append(self, index: int, timestamp: float, measured: SE3,
                heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
                odometry: SE3 | None = None,
-               position_sigma: FloatArray | None = None) -> TrackWindow:
+               position_sigma: FloatArray | None = None,
+               motion: RelativeMotions | None = None) -> TrackWindow:
         """The window with one more keyframe at its end (``odometry`` and
-        ``position_sigma`` given exactly when the window's keyframes have them)."""
+        ``position_sigma`` given exactly when the window's keyframes have them;
+        ``motion``: its relative motion from the window's last keyframe, one entry, or
+        None for none)."""
         d = self.data
         if (odometry is None) != (d.odometry is None):
             raise ValueError("odometry must be given for every keyframe of a window or none")
@@ -107,7 +120,8 @@ class TrackWindow:
                          else _append(d.odometry, odometry),
                          None if d.position_sigma is None or position_sigma is None
                          else np.vstack([d.position_sigma,
-                                         np.asarray(position_sigma, np.float64).reshape(1, 3)]))
+                                         np.asarray(position_sigma, np.float64).reshape(1, 3)]),
+                         _append_motion(d.motions, motion, len(self)))
         return TrackWindow(np.append(self.index, index), data,
                            _append(self.world_T_cam, world_T_cam),
                            np.append(self.evidence, evidence))
@@ -118,7 +132,9 @@ class TrackWindow:
         data = Keyframes(d.camera, d.timestamps[1:], d.world_T_cam[1:],
                          d.heatmaps.subset(np.arange(1, len(d.heatmaps))),
                          None if d.odometry is None else d.odometry[1:],
-                         None if d.position_sigma is None else d.position_sigma[1:])
+                         None if d.position_sigma is None else d.position_sigma[1:],
+                         None if d.motions is None
+                         else d.motions.take(np.arange(1, len(d.motions))))
         return TrackWindow(self.index[1:], data, self.world_T_cam[1:], self.evidence[1:])
 
     def with_estimate(self, world_T_cam: SE3) -> TrackWindow:
@@ -128,3 +144,12 @@ class TrackWindow:
 
 def _append(batch: SE3, pose: SE3) -> SE3:
     return SE3(np.concatenate([batch.wxyz_xyz, pose.wxyz_xyz[None]]))
+
+
+def _append_motion(motions: RelativeMotions | None, motion: RelativeMotions | None,
+                   n: int) -> RelativeMotions | None:
+    """The window's ``n`` motions with one more entry (None: none measured)."""
+    if motions is None and motion is None:
+        return None
+    return ((motions or RelativeMotions.none(n))
+            .append(motion or RelativeMotions.none(1)))
