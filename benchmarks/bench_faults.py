@@ -15,7 +15,8 @@ freshly simulated 6-keyframe flight and counts, over all cases:
 
 All must be 0 (``tests/cli/test_fault_corpus.py`` asserts the same, case by case). Also
 the time the checks of heat-map values (one minimum and maximum per channel and file)
-add to opening a 200-keyframe flight's heat-maps (``--check-flight``).
+add to opening a 200-keyframe flight's heat-maps (``--check-flight``; ``fit`` checks them as
+its solver first reads them instead).
 Results go to ``benchmarks/results/bench_faults.json``.
 Run: ``python benchmarks/bench_faults.py`` (about half a minute on 2 cores).
 """
@@ -35,6 +36,8 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from fault_cases import CASES  # noqa: E402
 from faults import make_base, run_case  # noqa: E402
+
+from turbinefit.io.heatmap_files import ValueCheck  # noqa: E402
 
 
 def run_corpus() -> dict[str, object]:
@@ -65,9 +68,9 @@ def run_corpus() -> dict[str, object]:
 
 
 def heatmap_check_cost(keyframes: int = 200) -> dict[str, float]:
-    """Seconds to open a simulated flight's heat-maps (memory-mapped) with and without the
-    value checks, page cache warm (best of 3)."""
-    import turbinefit.io.heatmap_files as hf
+    """Seconds to open a simulated flight's heat-maps with the value checks (``check="now"``,
+    as ``track`` and ``init`` open them) and without (``check="first read"``: ``fit`` checks
+    them as its solver first reads them), page cache warm (best of 3)."""
     from turbinefit.cli import main
     from turbinefit.io.flight_folder import read_flight_folder
 
@@ -75,22 +78,17 @@ def heatmap_check_cost(keyframes: int = 200) -> dict[str, float]:
         flight = Path(tmp) / "flight"
         assert main(["simulate", str(flight), "--keyframes", str(keyframes), "--quiet"]) == 0
         folder = read_flight_folder(flight)
-        real = hf._check_mapped_values
 
-        def best() -> float:
+        def best(check: ValueCheck) -> float:
             times = []
             for _ in range(3):
                 t = time.perf_counter()
-                folder.read_heatmaps()
+                folder.read_heatmaps(check=check)
                 times.append(time.perf_counter() - t)
             return min(times)
 
-        with_check = best()
-        hf._check_mapped_values = lambda *args: None  # type: ignore[assignment]
-        try:
-            without = best()
-        finally:
-            hf._check_mapped_values = real
+        with_check = best("now")
+        without = best("first read")
         stack = folder.read_heatmaps()
     return {"keyframes": keyframes, "map_size": f"{stack.width}x{stack.height}",
             "open_s": round(without, 4), "open_with_checks_s": round(with_check, 4),

@@ -262,6 +262,14 @@ def _cases() -> list[Case]:
     add("heatmaps-all-255", fit(), npy(None, lambda a: a * 255), r"heatmaps/0\.000000\.npy",
         r"outside \[0, 1\]")
     add("track-heatmap-value", track(), npy(2, set_value(0, 2.0)), HM, r"point_base")
+    # fit checks the values as its solver first reads them: the first bad file is named,
+    # also when two are, and when init reads them first (no turbine.yaml)
+    add("heatmap-values-two-files", fit(), both(npy(3, set_value(0, 2.0)),
+                                                npy(2, set_value(6, -0.5))), HM,
+        r"channel 6 \(line_blade\)", r"holds -0\.5")
+    add("heatmap-value-no-turbine", fit(), both(unlink("turbine.yaml"),
+                                                npy(2, set_value(5, np.nan))), HM,
+        r"channel 5 \(line_nacelle\)", r"NaN")
     add("heatmap-shape", fit(), npy(2, lambda a: a[:, ::2, ::2].copy()), HM,
         r"shape \(7, 24, 32\), expected \(7, 48, 64\)")
     add("heatmap-channels", fit(), npy(2, lambda a: a[:6].copy()), HM, r"shape \(6, 48, 64\)")

@@ -135,3 +135,25 @@ def test_a_command_loads_only_what_it_uses(argv: list[str], must_not: tuple[str,
     loaded = _loaded(argv)
     bad = sorted(m for m in loaded if any(m == x or m.startswith(x + ".") for x in must_not))
     assert not bad
+
+
+@pytest.mark.parametrize("plots", [False, True])
+def test_a_fit_from_heat_map_files_loads_only_what_it_uses(tmp_path: Path, plots: bool) -> None:
+    """``turbinefit fit`` of a flight with heat-map files runs to the end without the
+    detector (onnxruntime, scipy), turbine.glb's or a progress bar's libraries when nobody
+    watches (stderr not a terminal), nor, with --no-plots, matplotlib: they cost a
+    1000-keyframe fit a fifth of its time (docs/benchmarks.md)."""
+    from turbinefit.io.flight_folder import write_flight
+    from turbinefit.sim.scenario import SimConfig, simulate_flight
+
+    flight = tmp_path / "flight"
+    write_flight(simulate_flight(SimConfig(n_keyframes=6, seed=1)), flight)
+    out = tmp_path / "fit"
+    loaded = _loaded(["fit", str(flight), "--out", str(out)] + ([] if plots else ["--no-plots"]))
+    assert (out / "turbine.glb").is_file() and (out / "summary.json").is_file()
+    assert (out / "scene.png").is_file() is plots
+    heavy = ("scipy", "onnxruntime", "torch", "pygltflib", "tqdm", "turbinefit.detect",
+             "turbinefit.sim", "turbinefit.train") + (() if plots else ("matplotlib",))
+    bad = sorted(m for m in loaded if any(m == x or m.startswith(x + ".") for x in heavy))
+    assert not bad
+    assert ("matplotlib" in loaded) is plots

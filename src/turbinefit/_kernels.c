@@ -20,9 +20,17 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include <errno.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
+
+#ifndef _WIN32
+#include <sys/mman.h>
+#include <unistd.h>
+#define TF_HAVE_MMAP 1
+#endif
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -124,6 +132,11 @@ static void cr_weights(double t, double w[4], double dw[4], double d2w[4]) {
 
 static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/* fmax and fmin (a NaN argument gives the other), inlined: the library's are calls, four
+ * of them in each bilinear sample of the line search. */
+static inline double maxd(double a, double b) { return (a > b || b != b) ? a : b; }
+static inline double mind(double a, double b) { return (a < b || b != b) ? a : b; }
+
 /* One half-precision value as float32, exactly (numpy's conversion; a NaN stays a NaN):
  * the 15 bits of exponent and mantissa moved to float32's places and scaled by 2^112,
  * which rebiases the exponent of normal and subnormal values alike; infinities and NaNs
@@ -140,19 +153,292 @@ static inline float half_value(uint16_t h) {
     return o.f;
 }
 
+/* ---- the value check of heat-maps --------------------------------------------------- */
+
+/* The values a heat-map may hold, [lo, hi] in float32, and for float16 the magnitudes (15
+ * bits) in range for each sign, [a0, b0] and [a1, b1] (empty if a > b): a half's value
+ * grows with its magnitude bits, and NaNs (above 0x7c00) lie beyond every range, so the
+ * check of float16 compares integers. */
+typedef struct {
+    float lo, hi;
+    int16_t a0, b0, a1, b1;
+} ValueRange;
+
+static ValueRange value_range(double lo, double hi, int64_t half) {
+    ValueRange r;
+    r.lo = (float)lo;
+    r.hi = (float)hi;
+    r.a0 = 0x7fff; r.b0 = 0; r.a1 = 0x7fff; r.b1 = 0; /* empty unless found below */
+    for (int16_t m = 0; half && m <= 0x7c00; m++) {
+        const float v = half_value((uint16_t)m);
+        if (v >= r.lo && v <= r.hi) { if (r.a0 > m) r.a0 = m; r.b0 = m; }
+        if (-v >= r.lo && -v <= r.hi) { if (r.a1 > m) r.a1 = m; r.b1 = m; }
+    }
+    return r;
+}
+
+/* Whether `count` values at p (float16 if half) hold a NaN or a value outside r. */
+static int out_of_range(const void *p, int64_t half, int64_t count, const ValueRange *r) {
+    if (half) {
+        const uint16_t *q = (const uint16_t *)p;
+        const int16_t a0 = r->a0, b0 = r->b0, a1 = r->a1, b1 = r->b1;
+        int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
+        for (int64_t i = 0; i < count; i++) {
+            const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
+            const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
+            const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
+            const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
+            acc |= (int16_t)((m < lo_m) | (m > hi_m));
+        }
+        return acc != 0;
+    }
+    const float *f = (const float *)p;
+    const float flo = r->lo, fhi = r->hi;
+    int bad = 0;
+    for (int64_t i = 0; i < count; i++) {
+        const float v = f[i];
+        bad |= !(v >= flo) | !(v <= fhi);
+    }
+    return bad;
+}
+
+/* ---- heat-map files, mapped, holding only the pages read ----------------------------
+ *
+ * A flight's heat-map files are mapped read-only, one mapping per keyframe, and the
+ * kernels read them in place. A fit reads a quarter to a third of their pages (the bands
+ * round the projected model), but the kernel's fault-around maps the pages next to each
+ * one read (64 kB at a time on Linux), which over a fit is in effect all of them, and
+ * every mapped page counts in the process's memory. So the kernels note each page they
+ * read (`used`), and when a kernel is done with a keyframe that read a page for the first
+ * time, the pages mapped round it that nothing read are dropped again (madvise
+ * MADV_DONTNEED: they stay in the page cache, and a later read maps them back). The
+ * process then holds the pages read, and the pages of a keyframe or two per thread. The
+ * value check reads each file whole and drops it at once (tf_files_check). */
+
+/* Relaxed loads and stores of the page notes (GCC, Clang; MSVC maps no files). */
+#ifdef _MSC_VER
+#define LOAD_U8(p) (*(volatile uint8_t *)(p))
+#define STORE_U8(p, v) (*(volatile uint8_t *)(p) = (v))
+#define LOAD_I64(p) (*(volatile int64_t *)(p))
+static int cas_i64(int64_t *p, int64_t *expected, int64_t v) {
+    if (*p != *expected) { *expected = *p; return 0; }
+    *p = v;
+    return 1;
+}
+#define CAS_I64(p, e, v) cas_i64((p), (e), (v))
+#else
+#define LOAD_U8(p) __atomic_load_n((p), __ATOMIC_RELAXED)
+#define STORE_U8(p, v) __atomic_store_n((p), (v), __ATOMIC_RELAXED)
+#define LOAD_I64(p) __atomic_load_n((p), __ATOMIC_ACQUIRE)
+#define CAS_I64(p, e, v) \
+    __atomic_compare_exchange_n((p), (e), (v), 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)
+#endif
+
+typedef struct {
+    int64_t n, count, half, itemsize, page_shift, npages;
+    char **base;          /* per keyframe: its mapping (from the file's start) */
+    size_t *length;       /* per keyframe: bytes mapped */
+    int64_t *offset;      /* per keyframe: where its values start */
+    uint8_t *used;        /* n * npages: pages a kernel read */
+    uint8_t *dirty;       /* n: a page read for the first time since the last trim */
+    /* the value check (tf_files_check_setup) */
+    uint8_t *checked;     /* n: 1 once the keyframe's values were checked, 2 if bad */
+    int64_t first_bad;    /* the first keyframe found out of range (n if none) */
+    ValueRange range;
+    int64_t height, width, nrows, ncols, step, channels, on_first_read;
+    int64_t *rows;        /* the coarse grid's rows */
+    char *grid;           /* n * channels * nrows * ncols values: the coarse grid */
+} TfFiles;
+
+TF_EXPORT void tf_files_free(void *handle);
+
+/* Runs of unread pages shorter than this many bytes stay mapped: the kernel's fault-around
+ * (64 kB) maps such a gap back with its next read nearby, and each drop is a system call
+ * (and a TLB flush on every thread's processor). A 1000-keyframe fit then holds a few
+ * tens of per cent more than the pages it reads, with a third of the calls. */
+#define TRIM_MIN_BYTES ((int64_t)64 << 10)
+
+/* Drop the pages of keyframe k that no kernel read. */
+static void files_drop(TfFiles *fl, int64_t k) {
+#ifdef TF_HAVE_MMAP
+    const uint8_t *used = fl->used + k * fl->npages;
+    const int64_t pages = (int64_t)((fl->length[k] + ((size_t)1 << fl->page_shift) - 1)
+                                    >> fl->page_shift);
+    const int64_t min_run = TRIM_MIN_BYTES >> fl->page_shift;
+    int64_t p = 0;
+    while (p < pages) {
+        while (p < pages && LOAD_U8(used + p)) p++;
+        const int64_t start = p;
+        while (p < pages && !LOAD_U8(used + p)) p++;
+        if (p > start && p - start >= min_run)
+            madvise(fl->base[k] + (start << fl->page_shift),
+                    (size_t)((p - start) << fl->page_shift), MADV_DONTNEED);
+    }
+#else
+    (void)fl; (void)k;
+#endif
+}
+
+/* Check keyframe k's values (reading them all through its mapping) and keep its coarse
+ * grid; a keyframe out of range lowers first_bad. Its pages stay mapped (dirty: the
+ * caller drops what it does not read). */
+static void check_keyframe(TfFiles *fl, int64_t k) {
+    const char *buf = fl->base[k] + fl->offset[k];
+    const int64_t isz = fl->itemsize, H = fl->height, W = fl->width;
+    const int bad = out_of_range(buf, fl->half, fl->count, &fl->range);
+    if (bad) {
+        int64_t cur = LOAD_I64(&fl->first_bad);
+        while (k < cur && !CAS_I64(&fl->first_bad, &cur, k)) {}
+    } else if (fl->grid != NULL) {
+        char *g = fl->grid + k * fl->channels * fl->nrows * fl->ncols * isz;
+        for (int64_t c = 0; c < fl->channels; c++)
+            for (int64_t i = 0; i < fl->nrows; i++) {
+                const char *row = buf + ((c * H + fl->rows[i]) * W) * isz;
+                for (int64_t j = 0; j < fl->ncols; j++, g += isz)
+                    memcpy(g, row + j * fl->step * isz, (size_t)isz);
+            }
+    }
+    STORE_U8(fl->checked + k, bad ? 2 : 1);
+    fl->dirty[k] = 1;
+}
+
+/* Before a kernel reads keyframe k: with the check on first read, check it now (the same
+ * pass brings in the pages the kernel reads next). */
+static inline void files_touch(const void *files, uint64_t k) {
+    TfFiles *fl = (TfFiles *)files;
+    if (fl != NULL && fl->on_first_read && !LOAD_U8(fl->checked + k))
+        check_keyframe(fl, (int64_t)k);
+}
+
+/* After a kernel is done with keyframe k (its index among the files): drop the pages
+ * mapped round the ones it read for the first time. */
+static void files_trim(const void *files, uint64_t k) {
+    TfFiles *fl = (TfFiles *)files;
+    if (fl == NULL || !fl->dirty[k]) return;
+    fl->dirty[k] = 0;
+    files_drop(fl, (int64_t)k);
+}
+
+/* Map N keyframes' heat-map files (descriptors fds, which the caller may close at once;
+ * values from offsets[k], `count` each, float16 if `half` else float32). Returns the
+ * handle, or 0 with errno set (no mapping or memory; no mmap on this platform). */
+TF_EXPORT void *tf_files_new(int64_t n, const int64_t *fds, const int64_t *offsets,
+                             int64_t count, int64_t half) {
+#ifndef TF_HAVE_MMAP
+    (void)n; (void)fds; (void)offsets; (void)count; (void)half;
+    errno = ENOSYS;
+    return NULL;
+#else
+    TfFiles *fl = (TfFiles *)calloc(1, sizeof(TfFiles));
+    if (fl == NULL) return NULL;
+    fl->n = n;
+    fl->count = count;
+    fl->half = half;
+    fl->itemsize = half ? 2 : 4;
+    long page = sysconf(_SC_PAGESIZE);
+    fl->page_shift = 12;
+    while (page > 0 && ((int64_t)1 << fl->page_shift) < page) fl->page_shift++;
+    const size_t m = (size_t)(n > 0 ? n : 1);
+    fl->base = (char **)calloc(m, sizeof(char *));
+    fl->length = (size_t *)calloc(m, sizeof(size_t));
+    fl->offset = (int64_t *)calloc(m, sizeof(int64_t));
+    fl->dirty = (uint8_t *)calloc(m, 1);
+    fl->checked = (uint8_t *)calloc(m, 1);
+    fl->first_bad = n;
+    int64_t most = 0;
+    for (int64_t k = 0; k < n; k++)
+        if (offsets[k] > most) most = offsets[k];
+    fl->npages = (most + count * fl->itemsize + ((int64_t)1 << fl->page_shift) - 1)
+                 >> fl->page_shift;
+    fl->used = (uint8_t *)calloc(m * (size_t)fl->npages, 1);
+    int ok = fl->base && fl->length && fl->offset && fl->dirty && fl->used && fl->checked;
+    for (int64_t k = 0; ok && k < n; k++) {
+        fl->offset[k] = offsets[k];
+        fl->length[k] = (size_t)(offsets[k] + count * fl->itemsize);
+        void *p = mmap(NULL, fl->length[k], PROT_READ, MAP_SHARED, (int)fds[k], 0);
+        if (p == MAP_FAILED) ok = 0;
+        else fl->base[k] = (char *)p;
+    }
+    if (!ok) {
+        int err = errno ? errno : ENOMEM;
+        tf_files_free(fl);
+        errno = err;
+        return NULL;
+    }
+    return fl;
+#endif
+}
+
+/* Unmap the files. */
+TF_EXPORT void tf_files_free(void *handle) {
+    TfFiles *fl = (TfFiles *)handle;
+    if (fl == NULL) return;
+#ifdef TF_HAVE_MMAP
+    for (int64_t k = 0; fl->base && k < fl->n; k++)
+        if (fl->base[k] != NULL) munmap(fl->base[k], fl->length[k]);
+#endif
+    free(fl->base); free(fl->length); free(fl->offset); free(fl->used); free(fl->dirty);
+    free(fl->checked); free(fl->rows); free(fl);
+}
+
+/* Pages the kernels read so far (the bytes the process holds of the files). */
+TF_EXPORT int64_t tf_files_used(const void *handle) {
+    const TfFiles *fl = (const TfFiles *)handle;
+    int64_t total = 0;
+    for (int64_t i = 0; i < fl->n * fl->npages; i++) total += fl->used[i];
+    return total << fl->page_shift;
+}
+
+/* Copy keyframe k's values into out (count values), holding no page of it but those the
+ * kernels read; with the check on first read, checked first. */
+TF_EXPORT void tf_files_read(void *handle, int64_t k, void *out) {
+    TfFiles *fl = (TfFiles *)handle;
+    files_touch(fl, (uint64_t)k);
+    memcpy(out, fl->base[k] + fl->offset[k], (size_t)(fl->count * fl->itemsize));
+    fl->dirty[k] = 0;
+    files_drop(fl, k);
+}
+
 /* One channel plane of a keyframe's heat-maps, stored as float32 or float16 (the maps of
- * a flight share one storage; float16 values are read through half_value). */
+ * a flight share one storage; float16 values are read through half_value); with files,
+ * the kernels note the values they read (mark, exactly: a page noted but not read would
+ * not be let go if a later read of it mapped its neighbours). */
 typedef struct {
     const float *f;
     const uint16_t *h;
+    uint8_t *used;     /* files: the keyframe's row of TfFiles.used, else NULL */
+    uint8_t *dirty;    /* files: the keyframe's TfFiles.dirty */
+    size_t first;      /* files: the byte of the plane's first value in its file */
+    int64_t isz, page_shift;
 } Plane;
 
-/* The plane that starts `offset` values into the maps at address `addr`. */
-static inline Plane plane_at(uint64_t addr, int64_t half, size_t offset) {
+/* The plane that starts `offset` values into the maps of keyframe `addr`: the address of
+ * its array or, with `files`, its index among them. */
+static inline Plane plane_at(uint64_t addr, int64_t half, const void *files, size_t offset) {
     Plane p;
-    p.f = half ? NULL : (const float *)(uintptr_t)addr + offset;
-    p.h = half ? (const uint16_t *)(uintptr_t)addr + offset : NULL;
+    const TfFiles *fl = (const TfFiles *)files;
+    const char *data = fl ? fl->base[addr] + fl->offset[addr] : (const char *)(uintptr_t)addr;
+    p.f = half ? NULL : (const float *)data + offset;
+    p.h = half ? (const uint16_t *)data + offset : NULL;
+    p.used = fl ? fl->used + (int64_t)addr * fl->npages : NULL;
+    p.dirty = fl ? fl->dirty + addr : NULL;
+    p.isz = half ? 2 : 4;
+    p.first = fl ? (size_t)fl->offset[addr] + offset * (size_t)p.isz : 0;
+    p.page_shift = fl ? fl->page_shift : 0;
     return p;
+}
+
+/* Note that values i0..i1 (one run, i0 <= i1) of a plane are read (files only): their
+ * pages are then kept. */
+static inline void mark(Plane p, size_t i0, size_t i1) {
+    if (p.used == NULL) return;
+    const size_t a = (p.first + i0 * (size_t)p.isz) >> p.page_shift;
+    const size_t b = (p.first + i1 * (size_t)p.isz + (size_t)p.isz - 1) >> p.page_shift;
+    for (size_t q = a; q <= b; q++)
+        if (!LOAD_U8(p.used + q)) {
+            STORE_U8(p.used + q, 1);
+            *p.dirty = 1;
+        }
 }
 
 /* Value i of a plane. */
@@ -164,8 +450,8 @@ static inline double at(Plane p, size_t i) {
  * Returns 0, or 1 if a tap is not finite. */
 static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
                    double dG[2], double hG[3]) {
-    u = fmin(fmax(u, -1.0), (double)W);
-    v = fmin(fmax(v, -1.0), (double)H);
+    u = mind(maxd(u, -1.0), (double)W);
+    v = mind(maxd(v, -1.0), (double)H);
     double u0 = floor(u), v0 = floor(v);
     double wu[4], dwu[4], d2wu[4], wv[4], dwv[4], d2wv[4];
     cr_weights(u - u0, wu, dwu, d2wu);
@@ -177,6 +463,7 @@ static int bicubic(Plane plane, int W, int H, double u, double v, double *G,
     int bad = 0;
     for (int i = 0; i < 4; i++) {
         const size_t row = (size_t)clampi(iv - 1 + i, 0, H - 1) * W;
+        mark(plane, row + cols[0], row + cols[3]);
         double pu = 0, pdu = 0, pd2u = 0;
         for (int j = 0; j < 4; j++) {
             double p = at(plane, row + cols[j]);
@@ -207,7 +494,7 @@ static double border_weight(double u, double v, int W, int H, double margin, dou
     double dmin = d[which];
     grad[0] = grad[1] = 0.0;
     if (margin <= 0) return dmin >= 0 ? 1.0 : 0.0;
-    double x = fmin(fmax(dmin / margin, 0.0), 1.0);
+    double x = mind(maxd(dmin / margin, 0.0), 1.0);
     double w = x * x * (3.0 - 2.0 * x);
     double dw = (x > 0 && x < 1) ? 6.0 * x * (1.0 - x) / margin : 0.0;
     double sign = (which % 2 == 0) ? 1.0 : -1.0;
@@ -235,7 +522,7 @@ static void robust(int kind, double scale, double s, double *rho, double *drho) 
     if (kind == 1) {
         if (s <= c2) { *rho = s; *drho = 1.0; }
         else {
-            double root = sqrt(fmax(s, 1e-300));
+            double root = sqrt(maxd(s, 1e-300));
             *rho = 2.0 * scale * root - c2;
             *drho = scale / root;
         }
@@ -262,7 +549,8 @@ TF_EXPORT int64_t tf_image_terms(
     int64_t N, int64_t M, const double *poses, const double *cam_par, int64_t width,
     int64_t height, const double *A, const double *B, const double *JA, const double *JB,
     const double *frac, int64_t frac_stride, const int64_t *channels,
-    const uint64_t *maps, int64_t half, const int64_t *keyframes, int64_t kind, const double *target,
+    const uint64_t *maps, int64_t half, const void *files, const int64_t *keyframes, int64_t kind,
+    const double *target,
     const uint8_t *found, const double *normal, const double *par, int64_t with_jacobian, double *JtHJ, double *g,
     double *cost, int64_t *count) {
     Camera cam = camera_from(cam_par, (int)width, (int)height);
@@ -275,12 +563,13 @@ TF_EXPORT int64_t tf_image_terms(
     const size_t plane = (size_t)W * H;
     int64_t first_bad = INT64_MAX;
 
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         double R[9];
         quat_to_R(poses + 7 * n, R);
         const double *t = poses + 7 * n + 4;
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         double acc[NCOL * NCOL];
         double gacc[NCOL];
         memset(acc, 0, sizeof acc);
@@ -306,9 +595,9 @@ TF_EXPORT int64_t tf_image_terms(
                 if (!front) dwb[0] = dwb[1] = 0.0;
                 if (front && in_image(&cam, uv)) cnt++;
                 double G, dG[2], hG[3];
-                Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+                Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
                 bad |= bicubic(pl, W, H, uv[0], uv[1], &G, dG, hG);
-                double Gc = fmin(fmax(G, 0.0), 1.0);
+                double Gc = mind(maxd(G, 0.0), 1.0);
                 double rho = log1p_eps - log(Gc + eps);
                 double w2 = w * w;
                 s = lam * w2 * rho;
@@ -408,6 +697,7 @@ TF_EXPORT int64_t tf_image_terms(
         }
         cost[n] += c_n;
         count[n] += cnt;
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
@@ -419,16 +709,16 @@ TF_EXPORT int64_t tf_image_terms(
 
 /* Vertex of the parabola through the logs of three samples (correspondence._peak_offset). */
 static double peak_offset(double vm, double v0, double vp) {
-    double lm = log(fmax(vm, LOG_FLOOR)), l0 = log(fmax(v0, LOG_FLOOR));
-    double lp = log(fmax(vp, LOG_FLOOR));
+    double lm = log(maxd(vm, LOG_FLOOR)), l0 = log(maxd(v0, LOG_FLOOR));
+    double lp = log(maxd(vp, LOG_FLOOR));
     double den = lm - 2.0 * l0 + lp;
     double off = den < -1e-12 ? 0.5 * (lm - lp) / den : 0.0;
-    return fmin(fmax(off, -0.5), 0.5);
+    return mind(maxd(off, -0.5), 0.5);
 }
 
 /* Max over centre + offsets (du, dv pairs) inside the image and within radius R of the
  * window centre (cu0, cv0); -1 if none. Returns the (clamped) coordinates of the first max. */
-static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *off,
+static inline double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *off,
                          int64_t K, int cu0, int cv0, int64_t R, int *ou, int *ov, int *bad) {
     double best = -INFINITY;
     int best_u = 0, best_v = 0;
@@ -437,6 +727,7 @@ static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *
         int du = cu - cu0, dv = cv - cv0;
         int ok = cu >= 0 && cu < W && cv >= 0 && cv < H && (int64_t)du * du + (int64_t)dv * dv <= R * R;
         int u = clampi(cu, 0, W - 1), v = clampi(cv, 0, H - 1);
+        mark(pl, (size_t)v * W + u, (size_t)v * W + u);
         double val = at(pl, (size_t)v * W + u);
         if (!isfinite(val)) *bad = 1;
         if (!ok) val = -1.0;
@@ -451,19 +742,21 @@ static double window_max(Plane pl, int W, int H, int bu, int bv, const int64_t *
  * found (N, M). Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_point_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
-    const int64_t *keyframes, const int64_t *channels, const double *uv, const uint8_t *usable,
+    const void *files, const int64_t *keyframes, const int64_t *channels, const double *uv,
+    const uint8_t *usable,
     int64_t R, const int64_t *coarse, int64_t K1, const int64_t *fine, int64_t K2,
     int64_t step, double threshold, double *target, uint8_t *found) {
     const int W = (int)width, H = (int)height, s = (int)step;
     const size_t plane = (size_t)W * H;
     int64_t first_bad = INT64_MAX;
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+            Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
             int use = usable[i];
             int cu0 = (int)nearbyint(uv[2 * i]), cv0 = (int)nearbyint(uv[2 * i + 1]);
             int bu, bv, fu, fv;
@@ -478,25 +771,32 @@ TF_EXPORT int64_t tf_point_search_scaled(
             }
             int inner = fu >= s && fu <= W - 1 - s && fv >= s && fv <= H - 1 - s;
             found[i] = use && peak >= threshold && inner;
-            double n0 = at(pl, (size_t)fv * W + clampi(fu - s, 0, W - 1));
-            double n1 = at(pl, (size_t)fv * W + clampi(fu + s, 0, W - 1));
-            double n2 = at(pl, (size_t)clampi(fv - s, 0, H - 1) * W + fu);
-            double n3 = at(pl, (size_t)clampi(fv + s, 0, H - 1) * W + fu);
+            const size_t i0 = (size_t)fv * W + clampi(fu - s, 0, W - 1);
+            const size_t i1 = (size_t)fv * W + clampi(fu + s, 0, W - 1);
+            const size_t i2 = (size_t)clampi(fv - s, 0, H - 1) * W + fu;
+            const size_t i3 = (size_t)clampi(fv + s, 0, H - 1) * W + fu;
+            mark(pl, i0, i1);
+            mark(pl, i2, i2);
+            mark(pl, i3, i3);
+            double n0 = at(pl, i0), n1 = at(pl, i1), n2 = at(pl, i2), n3 = at(pl, i3);
             if (!(isfinite(n0) && isfinite(n1) && isfinite(n2) && isfinite(n3))) bad = 1;
             target[2 * i] = fu + s * peak_offset(n0, peak, n1);
             target[2 * i + 1] = fv + s * peak_offset(n2, peak, n3);
         }
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
 }
 
 /* Bilinear value at (pu, pv) of a plane; -1 outside the image or if !use. */
-static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, int *bad) {
+static inline double bilinear(Plane pl, int W, int H, double pu, double pv, int use, int *bad) {
     int ok = use && pu >= 0.0 && pu <= W - 1 && pv >= 0.0 && pv <= H - 1;
     int iu = clampi((int)floor(pu), 0, W - 2), iv = clampi((int)floor(pv), 0, H - 2);
-    double fu = fmin(fmax(pu - iu, 0.0), 1.0), fv = fmin(fmax(pv - iv, 0.0), 1.0);
+    double fu = mind(maxd(pu - iu, 0.0), 1.0), fv = mind(maxd(pv - iv, 0.0), 1.0);
     const size_t r0 = (size_t)iv * W + iu;
+    mark(pl, r0, r0 + 1);
+    mark(pl, r0 + W, r0 + W + 1);
     double t00 = at(pl, r0), t01 = at(pl, r0 + 1), t10 = at(pl, r0 + W), t11 = at(pl, r0 + W + 1);
     if (!(isfinite(t00) && isfinite(t01) && isfinite(t10) && isfinite(t11))) *bad = 1;
     if (!ok) return -1.0;
@@ -508,20 +808,22 @@ static double bilinear(Plane pl, int W, int H, double pu, double pv, int use, in
  * Returns -1 or the first bad row. */
 TF_EXPORT int64_t tf_line_search_scaled(
     int64_t N, int64_t M, int64_t width, int64_t height, const uint64_t *maps, int64_t half,
-    const int64_t *keyframes, const int64_t *channels, const double *uv, const double *normal,
+    const void *files, const int64_t *keyframes, const int64_t *channels, const double *uv,
+    const double *normal,
     const uint8_t *usable, int64_t L, double step, double threshold, double *target,
     uint8_t *found) {
     const int W = (int)width, H = (int)height;
     const size_t plane = (size_t)W * H;
     const int64_t K = L + 1; /* coarse samples at -L, -L + 2, ..., L */
     int64_t first_bad = INT64_MAX;
-#pragma omp parallel for schedule(static) reduction(min : first_bad)
+#pragma omp parallel for schedule(dynamic, 8) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
         const uint64_t hm = maps[keyframes[n]];
+        files_touch(files, hm);
         int bad = 0;
         for (int64_t m = 0; m < M; m++) {
             size_t i = (size_t)(n * M + m);
-            Plane pl = plane_at(hm, half, (size_t)channels[m] * plane);
+            Plane pl = plane_at(hm, half, files, (size_t)channels[m] * plane);
             int use = usable[i];
             double u0 = uv[2 * i], v0 = uv[2 * i + 1];
             double nu = normal[2 * i], nv = normal[2 * i + 1];
@@ -548,6 +850,7 @@ TF_EXPORT int64_t tf_line_search_scaled(
             target[2 * i] = u0 + s * nu;
             target[2 * i + 1] = v0 + s * nv;
         }
+        files_trim(files, hm);
         if (bad && n < first_bad) first_bad = n;
     }
     return first_bad == INT64_MAX ? -1 : first_bad;
@@ -680,47 +983,69 @@ TF_EXPORT int64_t tf_block_tridiag_solve(int64_t n, int64_t m, const double *D,
     return 0;
 }
 
-/* Value check of heat-map files: the first of N keyframes (float32 arrays, or float16 if
+/* Value check of heat-map arrays: the first of N keyframes (float32 arrays, or float16 if
  * `half`, of `count` values at the addresses `maps`) holding a value outside [lo, hi] or a
  * NaN, or N if none. One pass over the data on all threads (the caller names the file and
  * value). */
 TF_EXPORT int64_t tf_first_out_of_range(int64_t N, const uint64_t *maps, int64_t half,
                                         int64_t count, double lo, double hi) {
-    const float flo = (float)lo, fhi = (float)hi;
-    /* float16: the magnitudes (15 bits) in range for each sign, [a[s], b[s]] (empty if
-     * a > b): a half's value grows with its magnitude bits, and NaNs (above 0x7c00) lie
-     * beyond every range, so the check compares integers */
-    int16_t a0 = 0x7fff, b0 = 0, a1 = 0x7fff, b1 = 0; /* empty unless found below */
-    for (int16_t m = 0; half && m <= 0x7c00; m++) {
-        const float v = half_value((uint16_t)m);
-        if (v >= flo && v <= fhi) { if (a0 > m) a0 = m; b0 = m; }
-        if (-v >= flo && -v <= fhi) { if (a1 > m) a1 = m; b1 = m; }
-    }
+    const ValueRange r = value_range(lo, hi, half);
     int64_t first_bad = INT64_MAX;
 #pragma omp parallel for schedule(dynamic, 4) reduction(min : first_bad)
     for (int64_t n = 0; n < N; n++) {
-        const float *p = (const float *)(uintptr_t)maps[n];
-        const uint16_t *q = (const uint16_t *)(uintptr_t)maps[n];
-        int bad = 0;
-        if (half) {
-            int16_t acc = 0; /* 16-bit lanes throughout, so that the loop vectorises */
-            for (int64_t i = 0; i < count; i++) {
-                const int16_t x = (int16_t)q[i], m = (int16_t)(x & 0x7fff);
-                const int16_t neg = (int16_t)(x >> 15); /* 0 or -1: all bits set */
-                const int16_t lo_m = (int16_t)((a0 & ~neg) | (a1 & neg));
-                const int16_t hi_m = (int16_t)((b0 & ~neg) | (b1 & neg));
-                acc |= (int16_t)((m < lo_m) | (m > hi_m));
-            }
-            bad = acc != 0;
-        } else {
-            for (int64_t i = 0; i < count; i++) {
-                const float v = p[i];
-                bad |= !(v >= flo) | !(v <= fhi);
-            }
-        }
-        if (bad && n < first_bad) first_bad = n;
+        if (out_of_range((const void *)(uintptr_t)maps[n], half, count, &r) && n < first_bad)
+            first_bad = n;
     }
     return first_bad == INT64_MAX ? N : first_bad;
+}
+
+/* How the files' values are checked: [lo, hi] as tf_first_out_of_range, the coarse grid of
+ * HeatmapStack.coarse_grid kept in `grid` (n, channels, nrows, ncols values of the
+ * storage: rows `rows` of each channel of H x W at every `step`-th column, ncols =
+ * ceil(W / step)), and with `on_first_read` each keyframe checked when a kernel or
+ * tf_files_read first reads it (the rest by tf_files_check). Returns 0, or ENOMEM. */
+TF_EXPORT int64_t tf_files_check_setup(void *handle, double lo, double hi, int64_t H,
+                                       int64_t W, const int64_t *rows, int64_t nrows,
+                                       int64_t step, void *grid, int64_t on_first_read) {
+    TfFiles *fl = (TfFiles *)handle;
+    fl->range = value_range(lo, hi, fl->half);
+    fl->height = H;
+    fl->width = W;
+    fl->nrows = nrows;
+    fl->step = step;
+    fl->ncols = (W + step - 1) / step;
+    fl->channels = fl->count / (H * W);
+    fl->rows = (int64_t *)malloc((size_t)(nrows > 0 ? nrows : 1) * sizeof(int64_t));
+    if (fl->rows == NULL) return ENOMEM;
+    memcpy(fl->rows, rows, (size_t)nrows * sizeof(int64_t));
+    fl->grid = (char *)grid;
+    fl->on_first_read = on_first_read;
+    return 0;
+}
+
+/* Check every keyframe not checked yet, on all threads, each file's pages dropped once it
+ * is checked (so that the process holds a few at a time). Returns the first keyframe of
+ * all found holding a NaN or a value outside the range, or n if none. */
+TF_EXPORT int64_t tf_files_check(void *handle) {
+    TfFiles *fl = (TfFiles *)handle;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int64_t n = 0; n < fl->n; n++) {
+        if (LOAD_U8(fl->checked + n)) continue;
+        check_keyframe(fl, n);
+        fl->dirty[n] = 0;
+        files_drop(fl, n);
+    }
+    return LOAD_I64(&fl->first_bad);
+}
+
+/* The first keyframe found out of range so far, or n if none. */
+TF_EXPORT int64_t tf_files_first_bad(const void *handle) {
+    return LOAD_I64(&((const TfFiles *)handle)->first_bad);
+}
+
+/* Keyframe k's check: 0 not yet, 1 in range, 2 out of range. */
+TF_EXPORT int64_t tf_files_checked(const void *handle, int64_t k) {
+    return LOAD_U8(((const TfFiles *)handle)->checked + k);
 }
 
 

@@ -4,8 +4,10 @@ The kernels fuse, per keyframe, what the numpy reference implementation does in 
 vectorised passes: projecting the model, evaluating the heat-map or correspondence cost
 with its gradient and Hessian model, and folding the result into the keyframe's 13 x 13
 normal-equation block; also the correspondence searches and the block-tridiagonal solve.
-They read the heat-maps in place (memory maps included) through one pointer per keyframe,
-float32 or float16 as a flight stores them.
+They read the heat-maps in place through one pointer per keyframe, float32 or float16 as a
+flight stores them; a flight's heat-map files (:class:`FileMaps`) are mapped, and the
+kernels note the pages they read and drop the others that the system maps round them, so
+that a fit holds the quarter or third of a flight's maps it reads, not all of them.
 No library offers these model-specific loops (the solver study measured generic back-ends
 with per-factor Python callbacks 5-30x slower than the vectorised numpy version, which in
 turn spends 130 ms per evaluation of a 1000-keyframe flight on temporaries).
@@ -21,13 +23,14 @@ from __future__ import annotations
 import ctypes
 import importlib.util
 import os
-from typing import Any
+import weakref
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import interrupt_within
-from turbinefit.heatmaps import NonFiniteHeatmapError
+from turbinefit.heatmaps import HeatmapValueError, NonFiniteHeatmapError
 
 FloatArray = NDArray[np.float64]
 
@@ -45,7 +48,7 @@ def _load() -> ctypes.CDLL | None:
     if spec is None or spec.origin is None:
         return None
     try:
-        lib = ctypes.CDLL(spec.origin)
+        lib = ctypes.CDLL(spec.origin, use_errno=True)
         _declare(lib)
     except (OSError, AttributeError):  # not loadable, or built from an older _kernels.c
         return None
@@ -57,15 +60,15 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_image_terms.restype = _int
     lib.tf_image_terms.argtypes = [
         _int, _int, _f64, _f64, _int, _int, _f64, _f64, _ptr, _ptr, _ptr, _int, _i64, _u64,
-        _int, _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
+        _int, _ptr, _i64, _int, _ptr, _ptr, _ptr, _f64, _int, _ptr, _ptr, _f64, _i64]
     lib.tf_point_search_scaled.restype = _int
     lib.tf_point_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _u8, _int, _i64, _int, _i64,
-        _int, _int, _dbl, _f64, _u8]
+        _int, _int, _int, _int, _u64, _int, _ptr, _i64, _i64, _f64, _u8, _int, _i64, _int,
+        _i64, _int, _int, _dbl, _f64, _u8]
     lib.tf_line_search_scaled.restype = _int
     lib.tf_line_search_scaled.argtypes = [
-        _int, _int, _int, _int, _u64, _int, _i64, _i64, _f64, _f64, _u8, _int, _dbl, _dbl,
-        _f64, _u8]
+        _int, _int, _int, _int, _u64, _int, _ptr, _i64, _i64, _f64, _f64, _u8, _int, _dbl,
+        _dbl, _f64, _u8]
     lib.tf_block_tridiag_solve.restype = _int
     lib.tf_block_tridiag_solve.argtypes = [_int, _int, _f64, _f64, _f64, _f64]
     lib.tf_project.restype = None
@@ -74,6 +77,23 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.tf_num_threads.argtypes = []
     lib.tf_first_out_of_range.restype = _int
     lib.tf_first_out_of_range.argtypes = [_int, _u64, _int, _int, _dbl, _dbl]
+    lib.tf_files_new.restype = _ptr
+    lib.tf_files_new.argtypes = [_int, _i64, _i64, _int, _int]
+    lib.tf_files_free.restype = None
+    lib.tf_files_free.argtypes = [_ptr]
+    lib.tf_files_used.restype = _int
+    lib.tf_files_used.argtypes = [_ptr]
+    lib.tf_files_read.restype = None
+    lib.tf_files_read.argtypes = [_ptr, _int, _ptr]
+    lib.tf_files_check_setup.restype = _int
+    lib.tf_files_check_setup.argtypes = [_ptr, _dbl, _dbl, _int, _int, _i64, _int, _int, _ptr,
+                                         _int]
+    lib.tf_files_check.restype = _int
+    lib.tf_files_check.argtypes = [_ptr]
+    lib.tf_files_first_bad.restype = _int
+    lib.tf_files_first_bad.argtypes = [_ptr]
+    lib.tf_files_checked.restype = _int
+    lib.tf_files_checked.argtypes = [_ptr, _int]
 
 
 _LIB = _load()
@@ -102,6 +122,125 @@ def first_out_of_range(maps: NDArray[np.uint64], half: bool, count: int, lo: flo
                     int(count), float(lo), float(hi)))
 
 
+class NativeMaps(NamedTuple):
+    """How the kernels reach a stack's heat-maps
+    (:meth:`turbinefit.heatmaps.HeatmapStack.native_maps`): per keyframe, the address of
+    its (7, H, W) array in memory or, with ``files`` (a :class:`FileMaps` handle), its index
+    among the ``n_files`` files; float16 if ``half``, else float32."""
+
+    maps: NDArray[np.uint64]
+    half: bool
+    files: int | None = None
+    n_files: int = 0
+
+
+class FileMaps:
+    """A flight's heat-map files as the kernels read them (``tf_files_new``): each mapped
+    read-only, the kernels noting every value they read; when a kernel is done with a
+    keyframe that read a page for the first time, the pages the system mapped round it
+    (64 kB at a time on Linux) that nothing read are dropped again (they stay in the page
+    cache). A fit reads a quarter to a third of the pages of a flight (the bands round the
+    projected model), so the process holds about that much, where plain memory maps would
+    hold every page of every file.
+
+    Every value is checked once to lie in [``lo``, ``hi``] (compared in float32; NaN is
+    out): by :meth:`check`, or with ``on_first_read`` the first time a kernel or
+    :meth:`read` reads the keyframe (in the same pass as that read: the check brings in
+    the pages the kernel reads next), :meth:`check` doing the rest. A keyframe out of range
+    makes the kernels' callers raise :class:`~turbinefit.heatmaps.HeatmapValueError`
+    (:func:`_check`), and :meth:`read` too; :meth:`first_bad` names it. The check keeps
+    :attr:`grid`, the values of ``rows`` of each channel at every ``step``-th column
+    (N, 7, len(rows), ceil(W / step)), those of
+    :meth:`turbinefit.heatmaps.HeatmapStack.coarse_grid`.
+
+    Args:
+        fds: an open descriptor of each keyframe's file (mapped here: the caller closes
+            them).
+        offsets: where each file's values start.
+        shape: (7, H, W) of each keyframe's array; ``half``: float16, else float32.
+        lo, hi: the values allowed.
+        rows, step: the coarse grid's rows and column step.
+        on_first_read: check each keyframe when it is first read (else by :meth:`check`).
+
+    Raises:
+        OSError: if a file cannot be mapped.
+    """
+
+    def __init__(self, fds: list[int], offsets: list[int], shape: tuple[int, int, int],
+                 half: bool, lo: float, hi: float, rows: NDArray[np.int_], step: int,
+                 on_first_read: bool = False) -> None:
+        assert _LIB is not None
+        self.shape = shape
+        self.half = bool(half)
+        self.dtype = np.dtype("<f2" if half else "<f4")
+        self._n = len(fds)
+        _, H, W = shape
+        r = _c(rows, np.int64)
+        self.grid: NDArray[np.floating] = np.zeros((self._n, shape[0], len(r), -(-W // step)),
+                                                   dtype=self.dtype)
+        ctypes.set_errno(0)
+        handle = _LIB.tf_files_new(len(fds), _c(fds, np.int64), _c(offsets, np.int64),
+                                   int(np.prod(shape)), int(half))
+        if not handle:
+            code = ctypes.get_errno() or 12  # ENOMEM
+            raise OSError(code, os.strerror(code))
+        self.handle: int = handle
+        self._finalizer = weakref.finalize(self, _LIB.tf_files_free, handle)
+        code = int(_LIB.tf_files_check_setup(handle, float(lo), float(hi), H, W, r, len(r),
+                                              int(step), self.grid.ctypes.data,
+                                              int(on_first_read)))
+        if code:
+            raise OSError(code, os.strerror(code))
+
+    def __len__(self) -> int:
+        return self._n
+
+    def read(self, k: int, check: bool = True) -> NDArray[np.floating]:
+        """Keyframe ``k``'s (7, H, W) array (a read-only copy of its own, as read-only as a
+        memory map of the file).
+
+        Raises:
+            HeatmapValueError: if ``check`` and its values were found out of range.
+        """
+        assert _LIB is not None
+        out = np.empty(self.shape, dtype=self.dtype)
+        _LIB.tf_files_read(self.handle, int(k), out.ctypes.data)
+        if check and int(_LIB.tf_files_checked(self.handle, int(k))) == 2:
+            raise HeatmapValueError(int(k))
+        out.flags.writeable = False
+        return out
+
+    def check(self) -> int:
+        """Check every keyframe not checked yet, on all threads (``tf_files_check``; its
+        numpy twin is :func:`turbinefit.io.heatmap_files.check_heatmap_values` of
+        :meth:`read` in turn); returns :meth:`first_bad`."""
+        assert _LIB is not None
+        return int(_run(_LIB.tf_files_check, self.handle))
+
+    def first_bad(self) -> int:
+        """The first keyframe found holding a NaN or a value out of range so far (all of
+        them after :meth:`check`), or ``len(self)`` if none."""
+        assert _LIB is not None
+        return int(_LIB.tf_files_first_bad(self.handle))
+
+    def checked(self, k: int) -> bool:
+        """Whether keyframe ``k``'s values were checked (in range or not)."""
+        assert _LIB is not None
+        return bool(_LIB.tf_files_checked(self.handle, int(k)))
+
+    def used_bytes(self) -> int:
+        """Bytes of the pages the kernels read so far (the process holds these of the
+        files, and the gaps under 64 kB between them)."""
+        assert _LIB is not None
+        return int(_LIB.tf_files_used(self.handle))
+
+
+def files_supported() -> bool:
+    """Whether the kernels can map heat-map files themselves (:class:`FileMaps`): they
+    are :func:`available`, on a POSIX system."""
+    return available() and os.name == "posix"
+
+
 def _run(kernel: Any, *args: Any) -> Any:
     """``kernel(*args)``. A signal handled while ctypes converts the arguments (numpy's
     ``ndpointer`` checks run Python code, where handlers run) raises its interrupt, not the
@@ -115,8 +254,16 @@ def _run(kernel: Any, *args: Any) -> Any:
         raise interrupt from None
 
 
-def _check(bad: int, keyframes: NDArray[np.int_]) -> None:
-    """A kernel returned the first row ``bad`` (>= 0) whose heat-map had a NaN or inf."""
+def _check(bad: int, keyframes: NDArray[np.int_], maps: NativeMaps) -> None:
+    """After a kernel: raise :class:`~turbinefit.heatmaps.HeatmapValueError` if it found a
+    keyframe of files out of range (:class:`FileMaps` checked on first read), else
+    :class:`~turbinefit.heatmaps.NonFiniteHeatmapError` if it returned the first row
+    ``bad`` (>= 0) whose heat-map had a NaN or inf."""
+    if maps.files is not None:
+        assert _LIB is not None
+        first = int(_LIB.tf_files_first_bad(maps.files))
+        if first < maps.n_files:
+            raise HeatmapValueError(first)
     if bad >= 0:
         raise NonFiniteHeatmapError(int(keyframes[bad]))
 
@@ -132,7 +279,7 @@ def _opt(a: NDArray[Any] | None) -> int | None:
 def image_terms(
     poses: FloatArray, camera_params: FloatArray, width: int, height: int,
     A: FloatArray, B: FloatArray, JA: FloatArray | None, JB: FloatArray | None,
-    frac: FloatArray | None, channels: NDArray[np.int_], maps: NDArray[np.uint64], half: bool,
+    frac: FloatArray | None, channels: NDArray[np.int_], maps: NativeMaps,
     keyframes: NDArray[np.int_], kind: str, target: FloatArray | None,
     found: NDArray[np.bool_] | None, normal: FloatArray | None, lam: float,
     pixel_sigma: float, margin: float, floor: float, robust: str, robust_scale: float,
@@ -142,9 +289,10 @@ def image_terms(
 
     Points are ``(1 - f) A + f B`` with ``f = frac`` (N, M) (None: f = 0), their theta
     Jacobians ``(1 - f) JA + f JB`` (M, 3, 7). Adds ``J^T H J`` and ``J^T g`` into ``JtHJ``
-    (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: each keyframe's heat-maps' address,
-    float32 or (``half``) float16. Returns the per-keyframe cost (N,) and the
-    points in view (N,); raises NonFiniteHeatmapError on a NaN or inf heat-map value."""
+    (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: the stack's
+    :meth:`~turbinefit.heatmaps.HeatmapStack.native_maps`. Returns the per-keyframe cost
+    (N,) and the points in view (N,); raises NonFiniteHeatmapError on a NaN or inf
+    heat-map value."""
     assert _LIB is not None
     N, M = poses.shape[0], A.shape[0]
     cost = np.zeros(N)
@@ -159,12 +307,12 @@ def image_terms(
     bad = _run(_LIB.tf_image_terms,
         N, M, _c(poses, np.float64), _c(camera_params, np.float64), width, height,
         _c(A, np.float64), _c(B, np.float64), _opt(JAc), _opt(JBc), _opt(fr), M,
-        _c(channels, np.int64), maps, int(half), _c(keyframes, np.int64),
+        _c(channels, np.int64), maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
         0 if kind == "interp" else 1,
         _opt(tg), _opt(fd), _opt(nm), par, int(with_jacobian),
         None if JtHJ is None else JtHJ.ctypes.data, None if g is None else g.ctypes.data,
         cost, count)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return cost, count
 
 
@@ -183,7 +331,7 @@ def project(poses: FloatArray, camera_params: FloatArray, width: int, height: in
 
 
 def point_search(
-    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NativeMaps, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, usable: NDArray[np.bool_], radius: int,
     coarse: NDArray[np.int64], fine: NDArray[np.int64], step: int, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -194,15 +342,16 @@ def point_search(
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _run(_LIB.tf_point_search_scaled,
-        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
-        _c(uv, np.float64), _c(usable, np.uint8), radius, _c(coarse, np.int64),
+        N, M, width, height, maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
+        _c(channels, np.int64), _c(uv, np.float64), _c(usable, np.uint8), radius,
+        _c(coarse, np.int64),
         coarse.shape[0], _c(fine, np.int64), fine.shape[0], step, threshold, target, found)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return target, found.astype(bool)
 
 
 def line_search(
-    maps: NDArray[np.uint64], half: bool, width: int, height: int, keyframes: NDArray[np.int_],
+    maps: NativeMaps, width: int, height: int, keyframes: NDArray[np.int_],
     channels: NDArray[np.int_], uv: FloatArray, normal: FloatArray,
     usable: NDArray[np.bool_], half_length: int, step: float, threshold: float,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -213,10 +362,11 @@ def line_search(
     target = np.empty((N, M, 2))
     found = np.empty((N, M), dtype=np.uint8)
     bad = _run(_LIB.tf_line_search_scaled,
-        N, M, width, height, maps, int(half), _c(keyframes, np.int64), _c(channels, np.int64),
-        _c(uv, np.float64), _c(normal, np.float64), _c(usable, np.uint8), half_length,
+        N, M, width, height, maps.maps, int(maps.half), maps.files, _c(keyframes, np.int64),
+        _c(channels, np.int64), _c(uv, np.float64), _c(normal, np.float64),
+        _c(usable, np.uint8), half_length,
         step, threshold, target, found)
-    _check(int(bad), keyframes)
+    _check(int(bad), keyframes, maps)
     return target, found.astype(bool)
 
 

@@ -226,8 +226,13 @@ def add_detect_options(parser: argparse.ArgumentParser) -> None:
                         "track and init from photos; off for detect and evaluate)")
 
 
-def detect_options(args: argparse.Namespace) -> DetectOptions:
-    """The :class:`~turbinefit.detect.DetectOptions` of :func:`add_detect_options`."""
+def detect_options(args: argparse.Namespace) -> DetectOptions | None:
+    """The :class:`~turbinefit.detect.DetectOptions` of :func:`add_detect_options`; None
+    when none was given (the jobs then use ``DetectOptions()``, the same thing), so that a
+    command fitting heat-map files does not import the detector (onnxruntime, scipy)."""
+    if args.flip is None and args.tip_shift is None and args.zoom is None \
+            and args.refine is None:
+        return None
     from turbinefit.detect import DetectOptions
 
     return DetectOptions(flip=args.flip, tip_shift=args.tip_shift, zoom=args.zoom,

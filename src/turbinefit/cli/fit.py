@@ -55,10 +55,9 @@ def run(args: argparse.Namespace) -> int:
     base, options = fit_base_and_options(args)
     bar = None
     progress = None
-    if not args.quiet:
+    if not args.quiet and sys.stderr.isatty():  # no bar in logs and CI (nor tqdm's import)
         from tqdm import tqdm
 
-        # disable=None: no bar when stderr is not a terminal (logs, CI)
         bar = tqdm(desc="fit", unit="it", file=sys.stderr, dynamic_ncols=True, leave=False,
                    disable=None)
 

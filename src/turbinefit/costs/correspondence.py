@@ -159,9 +159,9 @@ def find_point_correspondences(
     H, W = heatmaps.height, heatmaps.width
     R = max(1, round(radius))
     s = max(1, int(step))
-    maps = heatmaps.pointers() if _native.available() else None
+    maps = heatmaps.native_maps() if _native.available() else None
     if maps is not None:
-        return _native.point_search(maps, heatmaps.half, W, H, keyframes, channels, uv,
+        return _native.point_search(maps, W, H, keyframes, channels, uv,
                                     usable, R, _disc_offsets(R, 2 * s), _square5(s), s,
                                     threshold)
     centre = np.rint(uv).astype(np.int64)
@@ -229,9 +229,9 @@ def find_line_correspondences(
     H, W = heatmaps.height, heatmaps.width
     st = float(step)
     L = max(1, round(half_length / st))
-    maps = heatmaps.pointers() if _native.available() else None
+    maps = heatmaps.native_maps() if _native.available() else None
     if maps is not None:
-        return _native.line_search(maps, heatmaps.half, W, H, keyframes, channels, uv, normal,
+        return _native.line_search(maps, W, H, keyframes, channels, uv, normal,
                                    usable, L, st, threshold)
     N, M = uv.shape[:2]
     coarse = np.arange(-L, L + 1, 2, dtype=np.float64) * st

@@ -15,6 +15,8 @@ are resized).
 from turbinefit.heatmaps.channels import CHANNEL_NAMES as CHANNEL_NAMES
 from turbinefit.heatmaps.channels import NUM_CHANNELS as NUM_CHANNELS
 from turbinefit.heatmaps.stack import HeatmapStack as HeatmapStack
+from turbinefit.heatmaps.stack import HeatmapValueError as HeatmapValueError
 from turbinefit.heatmaps.stack import NonFiniteHeatmapError as NonFiniteHeatmapError
 
-__all__ = ["CHANNEL_NAMES", "NUM_CHANNELS", "HeatmapStack", "NonFiniteHeatmapError"]
+__all__ = ["CHANNEL_NAMES", "NUM_CHANNELS", "HeatmapStack", "HeatmapValueError",
+           "NonFiniteHeatmapError"]

@@ -103,6 +103,7 @@ from turbinefit.io.heatmap_files import (
     CAMERA_FILE,
     WRITTEN_HEATMAP_DTYPE,
     HeatmapDtype,
+    ValueCheck,
     _kind,
     heatmap_filename,
     keyframe_stem,
@@ -235,9 +236,10 @@ class FlightFolder:
         """The heat-map file of keyframe ``k``."""
         return self.root / HEATMAP_DIR / heatmap_filename(float(self.timestamps[k]))
 
-    def read_heatmaps(self, mmap: bool = True) -> HeatmapStack:
+    def read_heatmaps(self, mmap: bool = True, check: ValueCheck = "now") -> HeatmapStack:
         """The heat-maps of ``heatmaps/``, at the size of the first file (see
-        :func:`read_heatmaps`; their camera: :meth:`heatmap_camera`)."""
+        :func:`read_heatmaps`, and for ``check`` when the values are checked; their camera:
+        :meth:`heatmap_camera`)."""
         hm_dir = self.root / HEATMAP_DIR
         kind = _kind(hm_dir)
         if kind is None:
@@ -245,7 +247,7 @@ class FlightFolder:
                              f"give photos in {IMAGE_DIR}/ to detect them)", path=hm_dir)
         return read_heatmaps(hm_dir, self.timestamps, mmap=mmap,
                              keyframes_file=self.root / KEYFRAMES_FILE,
-                             keyframe_lines=self.keyframes.lines)
+                             keyframe_lines=self.keyframes.lines, check=check)
 
     def heatmap_camera(self, heatmaps: HeatmapStack) -> PinholeCamera:
         """The camera of the heat-maps' pixel grid: ``camera.yaml``'s scaled to their size

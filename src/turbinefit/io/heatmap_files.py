@@ -1,11 +1,14 @@
 """Heat-map files of a flight folder: ``heatmaps/<t>.npy`` opened by their headers.
 
-:func:`read_heatmaps` maps (or reads) one float32 or float16 (7, h, w) ``.npy`` per
-keyframe (float16: half the bytes, read as they are by the compiled kernels), every file
-of the same size (given, or that of the first file, at least
-:data:`~turbinefit.io.limits.MIN_IMAGE_SIDE` px a side), only regular files
-(:func:`~turbinefit.io.limits.open_input`), each checked finite and in [0, 1]
-(:func:`check_heatmap_values`: one minimum and maximum per channel); :func:`scaled_camera` is the
+:func:`read_heatmaps` opens one float32 or float16 (7, h, w) ``.npy`` per keyframe
+(float16: half the bytes, read as they are by the compiled kernels), every file of the same
+size (given, or that of the first file, at least :data:`~turbinefit.io.limits.MIN_IMAGE_SIDE`
+px a side), only regular files (:func:`~turbinefit.io.limits.open_input`), each checked
+finite and in [0, 1] (:func:`check_heatmap_values`: one minimum and maximum per channel).
+The files are memory-mapped; with the compiled kernels they are mapped by
+:class:`turbinefit._native.FileMaps`, which keeps only the pages the kernels read (a fit of
+1000 keyframes of 320x240 maps holds about a quarter of them, where plain memory maps end up
+holding all of them). :func:`scaled_camera` is the
 camera of maps smaller than the photos (the rules are in
 :mod:`turbinefit.io.flight_folder`'s docstring). Every problem is an
 :class:`~turbinefit.errors.InputError` naming the file.
@@ -25,9 +28,11 @@ import numpy as np
 from numpy.lib import format as npy_format
 from numpy.typing import ArrayLike, NDArray
 
+from turbinefit import _native
 from turbinefit.errors import InputError, plain_number
 from turbinefit.geometry.camera import PinholeCamera
-from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS, HeatmapStack
+from turbinefit.heatmaps import CHANNEL_NAMES, NUM_CHANNELS, HeatmapStack, HeatmapValueError
+from turbinefit.heatmaps.stack import grid_rows, grid_step
 from turbinefit.io.atomic import StrPath
 from turbinefit.io.limits import MAX_IMAGE_PIXELS, MIN_IMAGE_SIDE, open_input
 
@@ -37,6 +42,8 @@ CAMERA_FILE = "camera.yaml"
 #: Heat-map values may lie this far outside [0, 1] (rounding of a resize or of float16).
 VALUE_TOLERANCE = 1e-3
 
+#: When :func:`read_heatmaps` checks the values: at once, or as they are first read.
+ValueCheck = Literal["now", "first read"]
 #: How heat-map files are stored: float16 or float32.
 HeatmapDtype = Literal["float16", "float32"]
 #: How turbinefit writes heat-map files (:func:`~turbinefit.io.flight_folder.write_flight`,
@@ -148,7 +155,8 @@ def _os_error(e: OSError, n: int, fname: str) -> InputError:
 def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = None,
                   width: int | None = None, mmap: bool = True,
                   keyframes_file: StrPath | None = None,
-                  keyframe_lines: ArrayLike | None = None) -> HeatmapStack:
+                  keyframe_lines: ArrayLike | None = None,
+                  check: ValueCheck = "now") -> HeatmapStack:
     """Open ``folder/<%.6f timestamp>.npy`` for every timestamp (see module docstring).
 
     Args:
@@ -156,10 +164,17 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
         timestamps: (N,) keyframe timestamps [s].
         height, width: expected map size [px]; None = that of the first file (the others
             must have it too).
-        mmap: map files read-only (default; a flight mixing float16 and float32 files has
-            its float16 ones converted to float32 in memory) or load all into one float32
-            (N, 7, H, W) array.
+        mmap: map files read-only (default: with the compiled kernels by
+            :class:`turbinefit._native.FileMaps`, holding the pages they read; a flight
+            mixing float16 and float32 files has its float16 ones converted to float32 in
+            memory) or load all into one float32 (N, 7, H, W) array.
         keyframes_file, keyframe_lines: only used to point error messages at the keyframe.
+        check: when the values are checked: ``"now"``, or with the compiled kernels
+            ``"first read"``: each keyframe's when the kernels (or ``stack[k]``) first
+            read it, in the same pass (a fit's first search reads every keyframe: the
+            check then costs no pass of its own), the rest by ``stack.check()``; a value
+            out of range is then a :class:`~turbinefit.heatmaps.HeatmapValueError`, which
+            :func:`value_error` turns into this module's InputError.
 
     Raises:
         InputError: naming the heat-map file that is missing or invalid.
@@ -184,37 +199,73 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
     stacked = None
     maps: list[NDArray[np.floating]] = []
     mapped: list[tuple[NDArray[np.floating], str, int]] = []  # (map, file, data offset)
+    use_files = mmap and _native.files_supported()
+    opened: list[tuple[int, int, np.dtype]] = []  # with files: (descriptor, offset, dtype)
     if mmap:
         _raise_open_file_limit(len(names) + 64)
     base = os.fspath(folder)
-    for k, name in enumerate(names):
-        fname = os.path.join(base, name)
-        try:  # a regular file only (a FIFO would block), closed by the with below
-            f = open_input(fname, missing=_missing(k, name, keyframes_file, lines))
-        except InputError as e:
-            cause = e.__cause__
-            if isinstance(cause, OSError) and cause.errno in (errno.EMFILE, errno.ENFILE):
-                raise _os_error(cause, len(names), fname) from cause
-            raise
-        with f:
+    fnames = [os.path.join(base, name) for name in names]
+    try:
+        for k, (name, fname) in enumerate(zip(names, fnames, strict=True)):
+            try:  # a regular file only (a FIFO would block), closed by the with below
+                f = open_input(fname, missing=_missing(k, name, keyframes_file, lines))
+            except InputError as e:
+                cause = e.__cause__
+                if isinstance(cause, OSError) and cause.errno in (errno.EMFILE, errno.ENFILE):
+                    raise _os_error(cause, len(names), fname) from cause
+                raise
+            with f:
+                try:
+                    header, offset = _read_npy_header(f, fname, cache)
+                    if k == 0 and not given:
+                        shape = _first_shape(header[0], fname)
+                    _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname,
+                                   None if given else names[0])
+                    if k == 0 and not mmap:
+                        stacked = np.empty((len(names), *shape), dtype=np.float32)
+                    if stacked is not None:
+                        f.seek(offset)
+                        _read_into(f, stacked[k], fname, header[2])
+                        check_heatmap_values(stacked[k], fname)
+                    elif use_files:  # mapped by FileMaps below
+                        opened.append((os.dup(f.fileno()), offset, header[2]))
+                    else:
+                        mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
+                        maps.append(np.ndarray(shape, dtype=header[2], buffer=mm,
+                                               offset=offset))
+                        mapped.append((maps[-1], fname, offset))
+                except OSError as e:
+                    raise _os_error(e, len(names), fname) from e
+        if use_files and len({dtype for _, _, dtype in opened}) > 1:
+            for (fd, offset, dtype), fname in zip(opened, fnames, strict=True):  # mixed: mapped
+                try:
+                    mm = mmap_module.mmap(fd, 0, access=mmap_module.ACCESS_READ)
+                except OSError as e:
+                    raise _os_error(e, len(names), fname) from e
+                maps.append(np.ndarray(shape, dtype=dtype, buffer=mm, offset=offset))
+                mapped.append((maps[-1], fname, offset))
+            _close([fd for fd, _, _ in opened])
+            opened, use_files = [], False
+    except BaseException:
+        _close([fd for fd, _, _ in opened])
+        raise
+    if use_files and opened:
+        try:
+            files = _native.FileMaps(
+                [fd for fd, _, _ in opened], [o for _, o, _ in opened], shape,
+                opened[0][2] == _HALF_DTYPE, -VALUE_TOLERANCE, 1.0 + VALUE_TOLERANCE,
+                grid_rows(shape[1]), grid_step(shape[2]), on_first_read=check != "now")
+        except OSError as e:
+            raise _os_error(e, len(names), os.fspath(folder)) from e
+        finally:
+            _close([fd for fd, _, _ in opened])
+        stack = HeatmapStack(files)
+        if check == "now":
             try:
-                header, offset = _read_npy_header(f, fname, cache)
-                if k == 0 and not given:
-                    shape = _first_shape(header[0], fname)
-                _check_heatmap(header, offset, os.fstat(f.fileno()).st_size, shape, fname,
-                               None if given else names[0])
-                if k == 0 and not mmap:
-                    stacked = np.empty((len(names), *shape), dtype=np.float32)
-                if stacked is None:
-                    mm = mmap_module.mmap(f.fileno(), 0, access=mmap_module.ACCESS_READ)
-                    maps.append(np.ndarray(shape, dtype=header[2], buffer=mm, offset=offset))
-                    mapped.append((maps[-1], fname, offset))
-                else:
-                    f.seek(offset)
-                    _read_into(f, stacked[k], fname, header[2])
-                    check_heatmap_values(stacked[k], fname)
-            except OSError as e:
-                raise _os_error(e, len(names), fname) from e
+                stack.check()
+            except HeatmapValueError as e:
+                raise value_error(stack, e.keyframe, fnames[e.keyframe]) from None
+        return stack
     if len({m.dtype for m in maps}) > 1:  # float16 and float32 files: float32 in memory
         for j, (m, fname, _) in enumerate(mapped):
             if m.dtype == _HALF_DTYPE:
@@ -227,17 +278,36 @@ def read_heatmaps(folder: StrPath, timestamps: ArrayLike, height: int | None = N
     return stack
 
 
+def _close(fds: list[int]) -> None:
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+
+
+def value_error(stack: HeatmapStack, k: int, fname: StrPath) -> InputError:
+    """The InputError of keyframe ``k`` of a stack read from files whose check found it out
+    of range (:class:`~turbinefit.heatmaps.HeatmapValueError`): the message of
+    :func:`check_heatmap_values` (channel and value), naming ``fname``."""
+    files = stack.files
+    assert files is not None
+    try:
+        check_heatmap_values(files.read(k, check=False), fname)
+    except InputError as e:
+        return e
+    return InputError("changed while it was read", path=Path(fname))
+
+
 def _check_mapped_values(mapped: list[tuple[NDArray[np.floating], str, int]],
                          shape: tuple[int, ...], total: int) -> None:
     """:func:`check_heatmap_values` of memory-mapped files ``(map, name, data offset)``,
     all float32 or all float16; the first bad file in keyframe order is the error. With
     the compiled kernels, one pass over the maps themselves on all threads
-    (:func:`turbinefit._native.first_out_of_range`; the pages it faults in are the ones the
-    solver reads next), the message from :func:`check_heatmap_values` of the file it
-    names; else each file is read into a scratch buffer on a few threads (faster in numpy
-    than two reductions over its memory map)."""
-    from turbinefit import _native
-
+    (:func:`turbinefit._native.first_out_of_range`), the message from
+    :func:`check_heatmap_values` of the file it names; else each file is read into a
+    scratch buffer on a few threads (faster in numpy than two reductions over its memory
+    map)."""
     half = mapped[0][0].dtype == _HALF_DTYPE
     if _native.available():
         pointers = np.array([m.ctypes.data for m, _, _ in mapped], dtype=np.uint64)

@@ -27,15 +27,21 @@ root tile for this file as content, since 3D Tiles turns a glTF's y-up into z-up
 glTF 2.0 extension georeferences a model (CESIUM_RTC was glTF 1.0's, and sets a centre
 but no orientation).
 
-Written with pygltflib (MIT licence), imported only when a file is written: it imports in
-about 0.06 s, where trimesh, which pulls in scipy.spatial and networkx, takes 0.6-1.7 s on
-this project's machine (``python -X importtime -c "import pygltflib"``, and the same for
-trimesh, after ``import numpy, scipy, PIL``, which fit loads anyway).
+Written by hand (:func:`glb_bytes`): a binary glTF is a 12-byte header and two chunks, the
+JSON document and the buffer (glTF 2.0, section 4.4 "GLB File Format Specification"), which
+``json``, ``struct`` and numpy write directly. A library made for the job would cost every
+fit and track its import for a file of a hundred kB: pygltflib writes the same bytes but
+imports dataclasses_json and marshmallow, 0.06 s on an idle machine and 0.1-0.3 s on a busy
+one (``python -X importtime -c "import numpy; import pygltflib"``), as long as the rest of
+writing a fit's outputs; trimesh pulls in scipy.spatial and networkx (0.6-1.7 s). The tests
+read the files back with trimesh, an independent reader.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +70,7 @@ SHARP_EDGE_DEG = 40.0
 # glTF constants (the specification's numbers)
 _FLOAT, _UINT32 = 5126, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_TRIANGLES = 4
 
 
 def georeference_extras(georef: Georef) -> dict[str, Any]:
@@ -90,8 +97,6 @@ def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry,
                 georef: Georef | None = None) -> bytes:
     """The binary glTF of ``turbine`` (see the module docstring); with ``georef``, its
     georeference in ``asset.extras``."""
-    import pygltflib as gl
-
     theta = turbine.to_vector()
     world_T_local = np.eye(4)
     world_T_local[:2, 3] = theta[:2]
@@ -99,39 +104,62 @@ def turbine_glb(turbine: TurbineParams, geometry: TurbineGeometry,
     solid = TurbineSolid(theta, geometry)
     matrix = (GLTF_FROM_WORLD @ world_T_local).T.ravel().tolist()  # column-major
     blob = bytearray()
-    extras = {} if georef is None else {"turbinefit_georeference": georeference_extras(georef)}
-    doc = gl.GLTF2(asset=gl.Asset(generator="turbinefit", extras=extras), scene=0)
+    asset: dict[str, Any] = {} if georef is None else {
+        "extras": {"turbinefit_georeference": georeference_extras(georef)}}
+    asset.update(generator="turbinefit", version="2.0")
+    accessors: list[dict[str, Any]] = []
+    views: list[dict[str, Any]] = []
+    materials: list[dict[str, Any]] = []
+    meshes: list[dict[str, Any]] = []
+    nodes: list[dict[str, Any]] = []
     for part in solid_mesh(solid):
         vertices, normals, faces = smooth_normals(part, math.radians(SHARP_EDGE_DEG))
-        vertices = vertices.astype(np.float32)
-        first = len(doc.accessors)
-        for data, kind, target in ((vertices, "VEC3", _ARRAY_BUFFER),
+        first = len(accessors)
+        for data, kind, target in ((vertices.astype(np.float32), "VEC3", _ARRAY_BUFFER),
                                    (normals.astype(np.float32), "VEC3", _ARRAY_BUFFER),
                                    (faces.astype(np.uint32).ravel(), "SCALAR",
                                     _ELEMENT_ARRAY_BUFFER)):
-            doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob),
-                                                 byteLength=data.nbytes, target=target))
-            blob += data.tobytes()
+            views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": data.nbytes,
+                          "target": target})
+            blob += data.astype(data.dtype.newbyteorder("<")).tobytes()
             blob += b"\0" * (-len(blob) % 4)
-            doc.accessors.append(gl.Accessor(
-                bufferView=len(doc.bufferViews) - 1, componentType=(
-                    _UINT32 if data.dtype == np.uint32 else _FLOAT),
-                count=len(data), type=kind,
-                min=data.min(axis=0).tolist() if target == _ARRAY_BUFFER else None,
-                max=data.max(axis=0).tolist() if target == _ARRAY_BUFFER else None))
-        doc.materials.append(gl.Material(
-            name=part.name, pbrMetallicRoughness=gl.PbrMetallicRoughness(
-                baseColorFactor=[*PART_COLOURS[part.name.split("_")[0]], 1.0],
-                metallicFactor=0.0, roughnessFactor=0.6)))
-        doc.meshes.append(gl.Mesh(name=part.name, primitives=[gl.Primitive(
-            attributes=gl.Attributes(POSITION=first, NORMAL=first + 1), indices=first + 2,
-            material=len(doc.materials) - 1)]))
-        doc.nodes.append(gl.Node(name=part.name, mesh=len(doc.meshes) - 1, matrix=matrix))
-    doc.scenes.append(gl.Scene(name="turbine", nodes=list(range(len(doc.nodes))),
-                               extras={"turbinefit": _extras(turbine, geometry)}))
-    doc.buffers.append(gl.Buffer(byteLength=len(blob)))
-    doc.set_binary_blob(bytes(blob))
-    return b"".join(doc.save_to_bytes())
+            accessor: dict[str, Any] = {
+                "bufferView": len(views) - 1, "byteOffset": 0,
+                "componentType": _UINT32 if data.dtype == np.uint32 else _FLOAT,
+                "normalized": False, "count": len(data), "type": kind}
+            if target == _ARRAY_BUFFER:
+                accessor["max"] = data.max(axis=0).tolist()
+                accessor["min"] = data.min(axis=0).tolist()
+            accessors.append(accessor)
+        materials.append({
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [*PART_COLOURS[part.name.split("_")[0]], 1.0],
+                "metallicFactor": 0.0, "roughnessFactor": 0.6},
+            "emissiveFactor": [0.0, 0.0, 0.0], "alphaMode": "OPAQUE", "doubleSided": False,
+            "name": part.name})
+        meshes.append({"primitives": [{"attributes": {"POSITION": first, "NORMAL": first + 1},
+                                       "indices": first + 2, "mode": _TRIANGLES,
+                                       "material": len(materials) - 1}],
+                       "name": part.name})
+        nodes.append({"mesh": len(meshes) - 1, "matrix": matrix, "name": part.name})
+    doc = {"accessors": accessors, "asset": asset, "bufferViews": views,
+           "buffers": [{"byteLength": len(blob)}], "materials": materials, "meshes": meshes,
+           "nodes": nodes, "scene": 0,
+           "scenes": [{"extras": {"turbinefit": _extras(turbine, geometry)},
+                       "name": "turbine", "nodes": list(range(len(nodes)))}]}
+    return glb_bytes(doc, bytes(blob))
+
+
+def glb_bytes(document: dict[str, Any], buffer: bytes) -> bytes:
+    """A binary glTF file: the header, the JSON chunk (``document``, padded with spaces to
+    4 bytes) and the BIN chunk (``buffer``, padded with zeros), glTF 2.0 section 4.4."""
+    text = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    buffer += b"\0" * (-len(buffer) % 4)
+    length = 12 + 8 + len(text) + 8 + len(buffer)
+    return b"".join([struct.pack("<4sII", b"glTF", 2, length),
+                     struct.pack("<I4s", len(text), b"JSON"), text,
+                     struct.pack("<I4s", len(buffer), b"BIN\0"), buffer])
 
 
 def write_turbine_glb(path: StrPath, turbine: TurbineParams, geometry: TurbineGeometry,

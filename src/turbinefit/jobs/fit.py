@@ -208,26 +208,30 @@ def fit_folder(
     t0 = time.perf_counter()
     folder = read_flight_folder(flight_dir)
     georef = read_flight_georef(flight_dir)
-    source = open_heatmaps(folder, from_images, model, detect_options)
+    # heat-map files are checked as the solver first reads them (its first search reads
+    # every keyframe: the check then costs no pass over the files of its own)
+    source = open_heatmaps(folder, from_images, model, detect_options, check="first read")
     cfg = fit_config_for(source, config, options)
-    stack = source.stack(progress=detect_progress)
-    init = None
-    if folder.turbine is None:  # no turbine.yaml: estimate it from the images
-        init = estimate_turbine(stack, source.camera, folder.keyframes.poses,
-                                where=flight_dir, gt_turbine=folder.gt_turbine)
-    flight = folder.flight(stack, source.camera, None if init is None else init.turbine)
-    timings["load"] = time.perf_counter() - t0
+    with source.checking():  # a value out of range: the InputError naming its file
+        stack = source.stack(progress=detect_progress)
+        init = None
+        if folder.turbine is None:  # no turbine.yaml: estimate it from the images
+            init = estimate_turbine(stack, source.camera, folder.keyframes.poses,
+                                    where=flight_dir, gt_turbine=folder.gt_turbine)
+        flight = folder.flight(stack, source.camera, None if init is None else init.turbine)
+        timings["load"] = time.perf_counter() - t0
 
-    t1 = time.perf_counter()
-    try:
-        # absurd inputs overflow inside the solver: the verdict reports it (non-finite
-        # numbers, no step), not numpy's warnings
-        with np.errstate(over="ignore", invalid="ignore"):
-            result = fit(flight, cfg, callback=progress, initial_poses=initial_poses,
-                         initial_turbine=initial_turbine)
-    except NonFiniteHeatmapError as exc:
-        raise InputError("heat-map contains NaN or inf", source.where(exc.keyframe)) from None
-    timings["solve"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        try:
+            # absurd inputs overflow inside the solver: the verdict reports it (non-finite
+            # numbers, no step), not numpy's warnings
+            with np.errstate(over="ignore", invalid="ignore"):
+                result = fit(flight, cfg, callback=progress, initial_poses=initial_poses,
+                             initial_turbine=initial_turbine)
+        except NonFiniteHeatmapError as exc:
+            raise InputError("heat-map contains NaN or inf",
+                             source.where(exc.keyframe)) from None
+        timings["solve"] = time.perf_counter() - t1
 
     summary = FitSummary(recorded_path(flight_dir, out_dir), flight.num_keyframes,
                          (flight.camera.width, flight.camera.height), source.description,

@@ -12,9 +12,10 @@ flight folder as the commands do.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -23,8 +24,9 @@ from numpy.typing import NDArray
 
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera, reduced_size
-from turbinefit.heatmaps import HeatmapStack
+from turbinefit.heatmaps import HeatmapStack, HeatmapValueError
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
+from turbinefit.io.heatmap_files import ValueCheck, value_error
 from turbinefit.io.images import image_size, read_image, resize_image
 from turbinefit.solver.config import FILE_FIT_DEFAULTS, PHOTO_FIT_DEFAULTS
 
@@ -79,6 +81,12 @@ class HeatmapSource(Protocol):
         """Every keyframe's maps."""
         ...
 
+    def checking(self) -> contextlib.AbstractContextManager[None]:
+        """A block in which heat-map values are checked as they are first read (maps read
+        with ``check="first read"``), and after which those not read yet are: a value out
+        of range is the InputError naming the first such file."""
+        ...
+
 
 class FileHeatmaps:
     """The heat-maps of a flight folder's ``heatmaps/`` (memory-mapped: only the ``.npy``
@@ -91,9 +99,10 @@ class FileHeatmaps:
     fit_defaults = FILE_FIT_DEFAULTS
     defaults_name = f"heat-map files ({_describe(FILE_FIT_DEFAULTS)})"
 
-    def __init__(self, folder: FlightFolder, mmap: bool = True) -> None:
+    def __init__(self, folder: FlightFolder, mmap: bool = True,
+                 check: ValueCheck = "now") -> None:
         self.folder = folder
-        self._stack = folder.read_heatmaps(mmap)
+        self._stack = folder.read_heatmaps(mmap, check)
         self.camera = folder.heatmap_camera(self._stack)
 
     def __len__(self) -> int:
@@ -107,6 +116,15 @@ class FileHeatmaps:
 
     def stack(self, progress: bool = False) -> HeatmapStack:
         return self._stack
+
+    @contextlib.contextmanager
+    def checking(self) -> Iterator[None]:
+        try:
+            yield
+            self._stack.check()
+        except HeatmapValueError:
+            first = self._stack.files.check() if self._stack.files is not None else 0
+            raise value_error(self._stack, first, self.where(first)) from None
 
 
 def detection_camera(camera: PinholeCamera, width: int = FIT_DETECT_WIDTH) -> PinholeCamera:
@@ -192,6 +210,9 @@ class PhotoHeatmaps:
     def keyframe(self, k: int) -> F32Maps:
         return self._detect(self._keyframe_detector(), self.paths[k])
 
+    def checking(self) -> contextlib.AbstractContextManager[None]:
+        return contextlib.nullcontext()  # the detector's maps are in [0, 1]
+
     def stack(self, progress: bool = False) -> HeatmapStack:
         from tqdm import tqdm
 
@@ -208,15 +229,16 @@ class PhotoHeatmaps:
 def open_heatmaps(folder: FlightFolder, from_images: bool | None = None,
                   model: str | os.PathLike[str] | None = None,
                   options: DetectOptions | None = None,
-                  threads: int | None = None) -> HeatmapSource:
+                  threads: int | None = None, check: ValueCheck = "now") -> HeatmapSource:
     """The heat-map source of a flight folder: :class:`PhotoHeatmaps` when ``from_images``
     is True, or when it is None and the folder has ``images/`` but no ``heatmaps/``;
-    :class:`FileHeatmaps` otherwise."""
+    :class:`FileHeatmaps` otherwise (its values checked as ``check`` says,
+    :func:`~turbinefit.io.heatmap_files.read_heatmaps`)."""
     if from_images is None:
         from_images = not has_heatmaps(folder.root) and (folder.root / IMAGE_DIR).is_dir()
     if from_images:
         return PhotoHeatmaps(folder, model, options, threads=threads)
-    return FileHeatmaps(folder)
+    return FileHeatmaps(folder, check=check)
 
 
 def fit_config_for(source: HeatmapSource, base: FitConfig | None = None,

@@ -483,7 +483,7 @@ class FitProblem:
             H = H * drho[..., None, None]
         return cost, n_in, (g, H, pr.J)
 
-    def _image_block_native(self, maps: NDArray[np.uint64], keyframes: NDArray[np.int_],
+    def _image_block_native(self, maps: _native.NativeMaps, keyframes: NDArray[np.int_],
                             kind: str, smp: Samples,
                             channels: NDArray[np.int_], lam: float, poses: SE3,
                             target: FloatArray | None, found: NDArray[np.bool_] | None,
@@ -495,7 +495,7 @@ class FitProblem:
         cam = self.data.camera
         cost, count = _native.image_terms(
             poses.wxyz_xyz, cam.kernel_params(), cam.width, cam.height, smp.A, smp.B,
-            smp.JA, smp.JB, smp.f, channels, maps, self.data.heatmaps.half, keyframes, kind,
+            smp.JA, smp.JB, smp.f, channels, maps, keyframes, kind,
             target, found, normal, lam,
             cfg.px("pixel_sigma"), cfg.px("border_margin"), cfg.heatmap_floor, cfg.robust,
             cfg.robust_scale, JtHJ is not None, JtHJ, g)
@@ -538,7 +538,7 @@ class FitProblem:
             return a if a is None or sel is None else a[sel]
 
         n_res = 0
-        maps = self.data.heatmaps.pointers() if _native.available() else None
+        maps = self.data.heatmaps.native_maps() if _native.available() else None
         for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue

@@ -54,6 +54,7 @@ from numpy.typing import NDArray
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.projection import project_points
 from turbinefit.geometry.se3 import SE3
+from turbinefit.heatmaps.stack import GRID_ROWS
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.linalg import arrow_theta, inverse_spd
 from turbinefit.solver.problem import (
@@ -83,8 +84,9 @@ MAX_EVIDENCE_AREA = 0.25
 #: A correspondence within this share of the heat-maps' width of its projection is an
 #: inlier (6.4 px on 320 px maps).
 INLIER_WIDTH_SHARE = 0.02
-#: Rows of the grid on which :data:`MAX_EVIDENCE_AREA` is estimated (x about 40 columns).
-AREA_GRID_ROWS = 12
+#: Rows of the grid on which :data:`MAX_EVIDENCE_AREA` is estimated (x about 40 columns):
+#: the heat-maps' coarse grid (:meth:`~turbinefit.heatmaps.HeatmapStack.coarse_grid`).
+AREA_GRID_ROWS = GRID_ROWS
 #: Heat-maps narrower than this [px] cannot place a turbine.
 MIN_HEATMAP_WIDTH = 32
 #: (doubtful below, failed below) the share of keyframes with evidence (good fits: 1.0).
@@ -152,16 +154,12 @@ class ImageEvidence:
 
 def _area_share(data: ProblemData, keyframes: NDArray[np.int_], threshold: float) -> FloatArray:
     """(N,) per keyframe the largest share of the image any channel is >= threshold over,
-    estimated on a grid of :data:`AREA_GRID_ROWS` rows by about 40 columns (a share, not a
-    peak: the grid may step over a peak but not over an area). Few rows, because each row
-    read is a page of a memory-mapped file brought into the process."""
-    maps = data.heatmaps
-    step = max(1, maps.width // 40)
-    rows = np.unique(np.linspace(0, maps.height - 1, AREA_GRID_ROWS).round().astype(int))
-    kf = keyframes.tolist()
-    out = np.empty(len(kf))
-    for start in range(0, len(kf), 128):  # a few MB at a time
-        grid = np.stack([maps[k][:, rows, ::step] for k in kf[start:start + 128]])
+    estimated on the heat-maps' coarse grid of :data:`AREA_GRID_ROWS` rows by about 40
+    columns (a share, not a peak: the grid may step over a peak but not over an area; the
+    value check of heat-map files keeps it, so no map is read again here)."""
+    out = np.empty(len(keyframes))
+    for start in range(0, len(keyframes), 128):  # a few MB at a time
+        grid = data.heatmaps.coarse_grid(keyframes[start:start + 128])
         out[start:start + grid.shape[0]] = np.max(np.mean(grid >= threshold, axis=(2, 3)),
                                                   axis=1)
     return out
