@@ -35,7 +35,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import gaussian_filter1d
 
 FloatArray = NDArray[np.float64]
 
@@ -163,6 +162,8 @@ def _search(photos: PhotoStack, kf: NDArray[np.int_], centre: FloatArray, nrm: F
     u = c[:, None, 0] + t[None] * nrm[:, None, 0]
     v = c[:, None, 1] + t[None] * nrm[:, None, 1]
     prof, inside = _bilinear(photos.images, kf[:, None], u, v)
+    from scipy.ndimage import gaussian_filter1d  # only with the edge term: fit loads no scipy
+
     g = gaussian_filter1d(prof, DOG_SIGMA * SUBSTEP, axis=-1, order=1) * SUBSTEP
     ag = np.abs(g)
     pad = int(np.ceil(3 * DOG_SIGMA * SUBSTEP))
