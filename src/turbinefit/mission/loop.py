@@ -73,6 +73,7 @@ from turbinefit.inspection.plan import (
     Waypoint,
     check_margin,
     plan_path,
+    tower_clearance,
 )
 from turbinefit.inspection.surface import SurfaceShape, TurbineSurface
 from turbinefit.sim.defects import draw_defects
@@ -86,7 +87,12 @@ from turbinefit.sim.turbines import preset_turbine
 from turbinefit.solver.config import PHOTO_FIT_DEFAULTS, FitConfig
 from turbinefit.solver.fit import fit
 from turbinefit.solver.init import NotDetermined, TurbinePrior, initial_turbine
-from turbinefit.solver.tracker import Tracker, TrackerConfig, TrackEstimate
+from turbinefit.solver.tracker import (
+    DEFAULT_THETA_SIGMA,
+    Tracker,
+    TrackerConfig,
+    TrackEstimate,
+)
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineParams, model_points
 from turbinefit.turbine.solid import ROOT_TWIST
 
@@ -155,8 +161,11 @@ class MissionConfig:
         overlap: the share of a photo's footprint its neighbours along the part share.
         safety_sigmas: in closed loop, the plan keeps the stand-off plus this many times the
             tracker's standard deviation of the drone's position (its worst direction), as
-            far as the camera still reaches the GSD, and widens the overlap by as much
-            (0: the stand-off and the overlap alone).
+            far as the camera still reaches the GSD, and widens the overlap by as much;
+            and it keeps the tower clearance plus as many times the standard deviation of
+            where the tower and the nacelle are (the turbine estimate's base and nacelle
+            length with the drone's position; photos of blades alone leave them
+            uncertain) (0: the stand-off, the overlap and the clearance alone).
         max_photos: end the mission after this many inspection photos (a short mission).
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
@@ -497,7 +506,9 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
 
     # -- the plan, then waypoint by waypoint
-    options = _options(cfg, _position_sigma(tracker, last_est) if cfg.closed_loop else 0.0)
+    options = (_options(cfg, _position_sigma(tracker, last_est),
+                        _structure_sigma(tracker, last_est)) if cfg.closed_loop
+               else _options(cfg, 0.0, 0.0))
     t0 = time.perf_counter()
     planned_for = tracker.turbine
     plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
@@ -527,9 +538,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             progress("inspection", len(done), total)
         if not cfg.closed_loop or since < cfg.replan_every:
             continue
-        wanted = _options(cfg, _position_sigma(tracker, est))
+        wanted = _options(cfg, _position_sigma(tracker, est), _structure_sigma(tracker, est))
         if (_moved(planned_for, tracker.turbine) < cfg.replan_m
                 and abs(wanted.standoff - options.standoff) < cfg.replan_m
+                and (wanted.tower_clearance or 0.0) <= (options.tower_clearance or 0.0)
                 and abs(wanted.overlap - options.overlap) < 0.1):
             continue
         if not plausible(tracker.turbine, typed_in, cfg.initial_error):
@@ -573,20 +585,43 @@ def _position_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float
     return float(math.sqrt(max(float(w[-1]), 0.0)))
 
 
-def _options(cfg: MissionConfig, sigma: float) -> PlanOptions:
-    """The plan's options for a pose known to a standard deviation ``sigma`` [m]: the
-    stand-off asked for, widened by ``safety_sigmas`` times ``sigma`` (at most half the
-    stand-off, and no further than the camera still reaches the GSD from), and the
-    photos' overlap along the part widened by as much (at most 0.7), so that a photo
-    taken that far off its station still meets its neighbours."""
+def _structure_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float:
+    """The standard deviation [m] of where the tower and the nacelle are, apart from the
+    drone's own position: the turbine estimate's base (its worst horizontal direction)
+    and nacelle length. Photos of the blades fix the hub well but hardly where the tower
+    stands behind it (a base further downwind and a shorter nacelle put the hub at the
+    same place), and the tracker's covariance of them is overconfident: 0.2 m where the
+    estimate was 1.5 m off (RTK, seed 6; ``benchmarks/bench_mission.py``). So never less
+    than the tracker's start-up prior's standard deviations (2 m at the base, 1 m of
+    nacelle length)."""
+    sig = tracker.config.theta_sigma or DEFAULT_THETA_SIGMA
+    prior = math.hypot(max(sig[0], sig[1]), sig[4])
+    cov = None if est is None else est.theta_covariance
+    if cov is None or not np.all(np.isfinite(cov)):
+        return prior
+    base = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))[-1]
+    return max(prior, math.sqrt(max(float(base), 0.0) + max(float(cov[4, 4]), 0.0)))
+
+
+def _options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> PlanOptions:
+    """The plan's options for a pose known to a standard deviation ``sigma`` [m], and a
+    tower and nacelle known to ``structure_sigma`` [m] apart from it: the stand-off asked
+    for, widened by ``safety_sigmas`` times ``sigma`` (at most half the stand-off, and no
+    further than the camera still reaches the GSD from), the photos' overlap along the
+    part widened by as much (at most 0.7), so that a photo taken that far off its station
+    still meets its neighbours, and the tower clearance widened by ``safety_sigmas`` times
+    both standard deviations together (at most the stand-off)."""
     f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
     reach = cfg.gsd_mm * f / 1000.0 - 0.5  # the planner flies its check's margin further
     widen = min(cfg.safety_sigmas * sigma, 0.5 * cfg.standoff)
     standoff = max(cfg.standoff, min(cfg.standoff + widen, reach))
     foot = min(cfg.camera.width, cfg.camera.height) * standoff / f
     overlap = min(0.7, cfg.overlap + cfg.safety_sigmas * sigma / foot)
+    base = tower_clearance(PlanOptions(standoff, cfg.gsd_mm))
+    tower = min(standoff, base + cfg.safety_sigmas * math.hypot(sigma, structure_sigma))
     return PlanOptions(round(standoff, 1), cfg.gsd_mm, overlap=round(overlap, 2),
-                       max_gimbal_up_deg=cfg.max_gimbal_up_deg)
+                       max_gimbal_up_deg=cfg.max_gimbal_up_deg,
+                       tower_clearance=math.floor(10 * tower) / 10)
 
 
 def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
