@@ -165,7 +165,9 @@ class MissionConfig:
             and it keeps the tower clearance plus as many times the standard deviation of
             where the tower and the nacelle are (the turbine estimate's base and nacelle
             length with the drone's position; photos of blades alone leave them
-            uncertain) (0: the stand-off, the overlap and the clearance alone).
+            uncertain), that standard deviation never taken below
+            ``structure_sigma_min`` [m] (the tracker's covariance of them is overconfident)
+            (0: the stand-off, the overlap and the clearance alone).
         max_photos: end the mission after this many inspection photos (a short mission).
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
@@ -189,6 +191,7 @@ class MissionConfig:
     replan_every: int = 3
     overlap: float = 0.3
     safety_sigmas: float = 2.0
+    structure_sigma_min: float = 1.0
     max_photos: int = 100_000
     speed_m_s: float = 4.0
     photo_s: float = 2.0
@@ -507,7 +510,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
 
     # -- the plan, then waypoint by waypoint
     options = (_options(cfg, _position_sigma(tracker, last_est),
-                        _structure_sigma(tracker, last_est)) if cfg.closed_loop
+                        _structure_sigma(tracker, last_est, cfg.structure_sigma_min)) if cfg.closed_loop
                else _options(cfg, 0.0, 0.0))
     t0 = time.perf_counter()
     planned_for = tracker.turbine
@@ -538,7 +541,8 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             progress("inspection", len(done), total)
         if not cfg.closed_loop or since < cfg.replan_every:
             continue
-        wanted = _options(cfg, _position_sigma(tracker, est), _structure_sigma(tracker, est))
+        wanted = _options(cfg, _position_sigma(tracker, est),
+                          _structure_sigma(tracker, est, cfg.structure_sigma_min))
         if (_moved(planned_for, tracker.turbine) < cfg.replan_m
                 and abs(wanted.standoff - options.standoff) < cfg.replan_m
                 and (wanted.tower_clearance or 0.0) <= (options.tower_clearance or 0.0)
@@ -585,22 +589,20 @@ def _position_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float
     return float(math.sqrt(max(float(w[-1]), 0.0)))
 
 
-def _structure_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float:
+def _structure_sigma(tracker: Tracker, est: TrackEstimate | None, least: float) -> float:
     """The standard deviation [m] of where the tower and the nacelle are, apart from the
     drone's own position: the turbine estimate's base (its worst horizontal direction)
-    and nacelle length. Photos of the blades fix the hub well but hardly where the tower
-    stands behind it (a base further downwind and a shorter nacelle put the hub at the
-    same place), and the tracker's covariance of them is overconfident: 0.2 m where the
-    estimate was 1.5 m off (RTK, seed 6; ``benchmarks/bench_mission.py``). So never less
-    than the tracker's start-up prior's standard deviations (2 m at the base, 1 m of
-    nacelle length)."""
-    sig = tracker.config.theta_sigma or DEFAULT_THETA_SIGMA
-    prior = math.hypot(max(sig[0], sig[1]), sig[4])
+    and nacelle length, at least ``least``. Photos of the blades fix the hub well but
+    hardly where the tower stands behind it (a base further downwind and a shorter nacelle
+    put the hub at the same place), and the tracker's covariance of them is overconfident:
+    0.2 m where the estimate was 1.5 m off (RTK, seed 6; ``benchmarks/bench_mission.py``).
+    Without a covariance (singular information), the tracker's start-up prior's."""
     cov = None if est is None else est.theta_covariance
     if cov is None or not np.all(np.isfinite(cov)):
-        return prior
+        sig = tracker.config.theta_sigma or DEFAULT_THETA_SIGMA
+        return max(least, math.hypot(max(sig[0], sig[1]), sig[4]))
     base = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))[-1]
-    return max(prior, math.sqrt(max(float(base), 0.0) + max(float(cov[4, 4]), 0.0)))
+    return max(least, math.sqrt(max(float(base), 0.0) + max(float(cov[4, 4]), 0.0)))
 
 
 def _options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> PlanOptions:
