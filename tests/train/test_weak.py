@@ -38,8 +38,8 @@ def test_zero_maps_cost_nothing_outside_and_anything_else_costs() -> None:
     known = _known_box(4, 2, 10, 9)
     strips = torch.full((1, 1, 4), -1, dtype=torch.long)
     zero = torch.full((1, 7, H, W), -30.0)
-    loss, outside, mil = weak_loss(zero, known, strips)
-    assert float(loss) < 1e-10 and outside < 1e-10 and mil == 0.0
+    loss, outside, mil, peak = weak_loss(zero, known, strips)
+    assert float(loss) < 1e-10 and outside < 1e-10 and mil == 0.0 and peak < 1e-10
     lit = zero.clone()
     lit[0, 4, 0, 0] = 3.0  # a line outside the box
     assert float(weak_loss(lit, known, strips)[0]) > 1e-6
@@ -79,11 +79,26 @@ def test_the_multiple_instance_term_rewards_line_inside_the_box() -> None:
     both[0, 4, 5, 8] = 4.0  # and a tower line in the second
     losses = [weak_loss(m, known, strips, mil_weight=1.0) for m in (empty, one_strip, both)]
     assert losses[0][2] > losses[1][2] > losses[2][2]
+    assert losses[0][3] == losses[1][3] == losses[2][3]  # nothing changed outside
     assert float(losses[2][0]) < float(losses[1][0]) < float(losses[0][0])
     # points inside the box do not count as line
     points = empty.clone()
     points[0, :4, 5, 5] = 4.0
     assert weak_loss(points, known, strips)[2] == pytest.approx(losses[0][2])
+
+
+def test_a_single_peak_outside_is_punished_beyond_its_pixel_share() -> None:
+    """The negative bag: one false peak among zeros costs far more than its 1 / (h w)
+    share of the per-pixel term, and the gradient goes to that peak alone."""
+    known = _known_box(4, 2, 10, 9)
+    strips = torch.full((1, 1, 4), -1, dtype=torch.long)
+    logits = torch.full((1, 7, H, W), -8.0)
+    logits[0, 4, 0, 0] = 1.0
+    logits.requires_grad_(True)
+    loss, outside, _, peak = weak_loss(logits, known, strips, mil_weight=1.0)
+    assert peak > 10 * outside
+    (g,) = torch.autograd.grad(loss, logits)
+    assert float(g[0, 4, 0, 0]) > 100 * float(g[0, 4, 11, 15])
 
 
 def test_channel_weights_weigh_the_outside() -> None:
@@ -166,6 +181,19 @@ def test_lines_running_into_a_box_are_left_unknown() -> None:
     # the tower's bottom (photo y 180, x 100) is unknown, the road (x 10) is zero
     assert known[int((180 * 1.2) / 2), int((100 * 1.2 + 40) / 2)] == 0
     assert known[60, int((10 * 1.2 + 40) / 2)] == 1
+
+
+def test_false_colour_keeps_the_shape_and_spans_the_palette() -> None:
+    from turbinefit.train.weak import THERMAL_PALETTES, false_colour
+
+    ramp = np.repeat(np.linspace(0, 255, 64, dtype=np.uint8)[None, :, None], 3, axis=2)
+    outs = [false_colour(ramp, (k + 0.5) / (2 * len(THERMAL_PALETTES)))
+            for k in range(2 * len(THERMAL_PALETTES))]
+    for out in outs:
+        assert out.shape == ramp.shape and out.dtype == np.uint8
+        assert (out[0, 0] != out[0, -1]).any()
+    n = len(THERMAL_PALETTES)
+    assert (outs[0][0, 0] == outs[n][0, -1]).all()  # the second half reverses the scale
 
 
 def _names(n: int, held: bool) -> list[str]:

@@ -587,7 +587,7 @@ def train(cfg: TrainConfig, progress: bool = True,
         net.train()
         t0 = time.perf_counter()
         seen, loss_sum = 0, 0.0
-        out_sum, mil_sum = 0.0, 0.0
+        out_sum, mil_sum, peak_sum = 0.0, 0.0, 0.0
         bar = tqdm(loader, total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}",
                    unit="step", disable=not progress, leave=False)
         for x, y in bar:
@@ -598,10 +598,11 @@ def train(cfg: TrainConfig, progress: bool = True,
                 xr, known, strips = next(real)
                 logits = forward(net, _jitter(torch.cat([x, xr])))
                 loss = heatmap_loss(logits[:len(x)], y, cfg.pos_weight, cfg.channel_weights)
-                wl, o, m = weak_loss(logits[len(x):], known, strips, cfg.channel_weights,
-                                     cfg.mil_weight)
+                wl, o, m, pk = weak_loss(logits[len(x):], known, strips,
+                                         cfg.channel_weights, cfg.mil_weight)
                 loss = loss + wl
                 out_sum, mil_sum = out_sum + o * len(x), mil_sum + m * len(x)
+                peak_sum += pk * len(x)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -621,7 +622,8 @@ def train(cfg: TrainConfig, progress: bool = True,
             val_loss, metrics, _ = _calibrated_metrics(net, val, cfg.pos_weight, grid)
         if real is not None:
             metrics.update(real_outside_loss=out_sum / max(seen, 1),
-                           real_mil_loss=mil_sum / max(seen, 1))
+                           real_mil_loss=mil_sum / max(seen, 1),
+                           real_peak_loss=peak_sum / max(seen, 1))
         rec = EpochRecord(epoch + 1, loss_sum / max(seen, 1), val_loss, rate, metrics)
         history.append(rec)
         log(f"epoch {epoch + 1}/{cfg.epochs}: loss {rec.train_loss:.4f} held-out "

@@ -10,6 +10,9 @@ more than that:
   weighted as the renders' loss weights it (:func:`weak_loss`). These are the real
   negatives the renders lack: the roads, field edges, roofs and pylons of the photos.
   Turbine-free photos (``negatives``) are zero everywhere.
+  Since a fit takes a single peak above its correspondence threshold for evidence, the
+  largest logit of each channel over the known part is also pushed towards 0 (a
+  negative bag of the multiple-instance term below).
 * **Inside the box, some line.** Where the skeleton runs inside the box the box cannot
   tell, so no pixel inside it is pushed either way. A multiple-instance term asks only
   that the line channels' maximum over each of :attr:`WeakPhotos.strips` strips cut
@@ -27,7 +30,8 @@ Each sample is one random view of a photo (:class:`WeakPhotos`): the photo lette
 into the net's 4:3 input as :func:`turbinefit.detect.letterbox` does (its reflected
 margins hold mirrored parts of the turbine, so they are unknown for a photo with boxes),
 or a random 4:3 window of 55-100 % of the largest the photo holds, then mirrored half
-the time. Photos are decoded once, at most :data:`DECODE_WIDTH` px wide.
+the time; :data:`THERMAL_SHARE` of the views of turbine-free photos are shown in false
+colour, as thermal cameras show theirs. Photos are decoded once, at most :data:`DECODE_WIDTH` px wide.
 
 Written here because no library trains heat-maps from boxes this way; the views use
 :func:`turbinefit.io.images.resize_image` (Pillow).
@@ -62,6 +66,11 @@ MIN_IN_VIEW = 0.5
 MAX_BOXES = 4
 #: The starting net's line response above this counts as a line (:func:`attached_lines`).
 ATTACHED_THRESHOLD = 0.3
+#: Share of the views of turbine-free photos shown in false colour, as thermal cameras show
+#: theirs (a thermal photo is no input a fit can use: it must find no turbine in it).
+THERMAL_SHARE = 0.15
+#: The false-colour palettes (matplotlib's names) of :func:`false_colour`.
+THERMAL_PALETTES = ("inferno", "jet", "hot", "plasma")
 #: Smallest and largest window of a random view, as a share of the largest 4:3 window.
 VIEW_SCALE = (0.55, 1.0)
 
@@ -225,8 +234,10 @@ class WeakPhotos(torch.utils.data.Dataset[tuple[torch.Tensor, torch.Tensor, torc
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         photo = self.photos[i]
-        r = torch.rand(5).numpy().astype(np.float64)
+        r = torch.rand(7).numpy().astype(np.float64)
         image, xform, area = self.view(photo, bool(r[0] < 0.5), r[1:4])
+        if not photo.boxes and r[5] < THERMAL_SHARE:
+            image = false_colour(image, r[6])
         known, strips = self.targets(photo, xform, area)
         if r[4] < 0.5:  # mirrored
             w = known.shape[1]
@@ -236,6 +247,19 @@ class WeakPhotos(torch.utils.data.Dataset[tuple[torch.Tensor, torch.Tensor, torc
         x = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1))).float() / 255.0
         return (x, torch.from_numpy(np.ascontiguousarray(known))[None],
                 torch.from_numpy(strips))
+
+
+def false_colour(image: NDArray[np.uint8], u: float) -> NDArray[np.uint8]:
+    """``image``'s luminance through one of :data:`THERMAL_PALETTES` (chosen by ``u`` in
+    [0, 1); its second half reverses the scale), as thermal cameras show their photos."""
+    from matplotlib import colormaps
+
+    k = int(u * 2 * len(THERMAL_PALETTES))
+    lum = image.astype(np.float32) @ np.array([0.299, 0.587, 0.114], dtype=np.float32) / 255.0
+    if k >= len(THERMAL_PALETTES):
+        lum = 1.0 - lum
+    rgb = colormaps[THERMAL_PALETTES[k % len(THERMAL_PALETTES)]](lum)[..., :3]
+    return np.rint(rgb * 255.0).astype(np.uint8)
 
 
 def attached_lines(photos: list[WeakPhoto], maps_of: Callable[[NDArray[np.uint8]], NDArray[np.floating]],
@@ -277,17 +301,24 @@ def attached_lines(photos: list[WeakPhoto], maps_of: Callable[[NDArray[np.uint8]
 
 def weak_loss(logits: torch.Tensor, known: torch.Tensor, strips: torch.Tensor,
               channel_weights: tuple[float, ...] | None = None, mil_weight: float = 0.05
-              ) -> tuple[torch.Tensor, float, float]:
-    """(loss, its outside part, its multiple-instance part) of ``logits`` (B, 7, h, w) of
-    box-labelled or turbine-free photos (module docstring): cross-entropy towards 0 where
-    ``known`` (B, 1, h, w) is 1, channel-weighted and averaged over every element as the
-    renders' loss is (a pixel that is not known adds nothing), plus ``mil_weight`` times
-    the mean over the ``strips`` (B, S, 4) of the cross-entropy towards 1 of the line
-    channels' largest logit in the strip."""
-    w = known
-    if channel_weights is not None:
-        w = w * torch.tensor(channel_weights, dtype=logits.dtype).view(1, -1, 1, 1)
-    outside = (F.softplus(logits) * w).mean()
+              ) -> tuple[torch.Tensor, float, float, float]:
+    """(loss, its outside part, its in-box multiple-instance part, its outside-peak part)
+    of ``logits`` (B, 7, h, w) of box-labelled or turbine-free photos (module docstring):
+
+    * cross-entropy towards 0 where ``known`` (B, 1, h, w) is 1, channel-weighted and
+      averaged over every element as the renders' loss is (a pixel that is not known adds
+      nothing);
+    * ``mil_weight`` times the mean over the ``strips`` (B, S, 4) of the cross-entropy
+      towards 1 of the line channels' largest logit in the strip (a positive bag: some
+      pixel of it is line);
+    * ``mil_weight`` times the channel-weighted mean over the photos and channels of the
+      cross-entropy towards 0 of each channel's largest logit where ``known`` (a negative
+      bag: no pixel of it is anything). The per-pixel term barely sees a few false peaks
+      among 19,200 pixels; this one sees only them, and a fit takes one peak above its
+      correspondence threshold for evidence."""
+    cw = (torch.ones(logits.shape[1], dtype=logits.dtype) if channel_weights is None
+          else torch.tensor(channel_weights, dtype=logits.dtype))
+    outside = (F.softplus(logits) * known * cw.view(1, -1, 1, 1)).mean()
     line = logits[:, list(LINE_CHANNELS)].amax(dim=1)
     peaks = []
     for b in range(strips.shape[0]):
@@ -295,4 +326,11 @@ def weak_loss(logits: torch.Tensor, known: torch.Tensor, strips: torch.Tensor,
             if x0 >= 0:
                 peaks.append(line[b, y0:y1, x0:x1].amax())
     mil = F.softplus(-torch.stack(peaks)).mean() if peaks else logits.new_zeros(())
-    return outside + mil_weight * mil, float(outside.detach()), float(mil.detach())
+    bags = known.flatten(1).amax(dim=1) > 0
+    if bool(bags.any()):
+        top = logits.masked_fill(known < 0.5, -1e4).flatten(2).amax(dim=2)[bags]
+        peak = (F.softplus(top) * cw).mean()
+    else:
+        peak = logits.new_zeros(())
+    return (outside + mil_weight * (mil + peak), float(outside.detach()), float(mil.detach()),
+            float(peak.detach()))
