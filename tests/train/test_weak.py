@@ -246,3 +246,46 @@ def test_training_with_boxes_and_negatives_runs(tmp_path: Path) -> None:
     assert any("2 real photos with boxes, 1 turbine-free" in line for line in logs)
     hist = (tmp_path / "out" / "history.csv").read_text()
     assert "real_mil_loss" in hist and "real_outside_loss" in hist
+
+
+def test_averaged_weights_are_the_mean_and_other_nets_are_refused(tmp_path: Path) -> None:
+    """``train --average-with``: the exported weights are the stated mix of the trained ones
+    (the checkpoint's) and the other net's; a net of another architecture is refused before
+    any training."""
+    import torch
+
+    from turbinefit.errors import InputError
+    from turbinefit.train.export import load_npz, save_npz
+    from turbinefit.train.net import HeatmapNet
+    from turbinefit.train.trainer import TrainConfig, train
+
+    other = tmp_path / "other.npz"
+    torch.manual_seed(3)
+    save_npz(HeatmapNet((8, 8, 8, 8), input_scale=1), other)
+    cfg = TrainConfig(out_dir=tmp_path / "out", data_dir=tmp_path / "data", n_images=4,
+                      val_images=2, epochs=1, batch=2, max_steps=1, workers=1,
+                      widths=(8, 8, 8, 8), input_scale=1, average_with=other,
+                      average_weight=0.25, tip_threshold=0.4)
+    res = train(cfg, progress=False, log=lambda _: None)
+    trained = torch.load(tmp_path / "out" / "checkpoint.pt", map_location="cpu",
+                         weights_only=False)["model"]
+    mixed = load_npz(tmp_path / "out" / "weights.npz").state_dict()
+    theirs = load_npz(other).state_dict()
+    for k, v in mixed.items():
+        if v.is_floating_point():
+            want = 0.25 * trained[k].double() + 0.75 * theirs[k].double()
+            assert torch.allclose(v.double(), want, atol=1e-6), k
+    assert any(not torch.allclose(v.double(), trained[k].double())
+               for k, v in mixed.items() if v.is_floating_point())
+    from turbinefit.detect import HeatmapDetector
+
+    assert HeatmapDetector(res.model).info.tip_threshold == pytest.approx(0.4)
+
+    wider = tmp_path / "wider.npz"
+    save_npz(HeatmapNet((8, 8, 8, 16), input_scale=1), wider)
+    bad = TrainConfig(out_dir=tmp_path / "out2", data_dir=tmp_path / "data", n_images=4,
+                      val_images=2, epochs=1, batch=2, max_steps=1, workers=1,
+                      widths=(8, 8, 8, 8), input_scale=1, average_with=wider)
+    with pytest.raises(InputError, match="same architecture"):
+        train(bad, progress=False, log=lambda _: None)
+    assert not (tmp_path / "out2" / "model.onnx").exists()

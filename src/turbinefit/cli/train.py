@@ -124,6 +124,17 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help="also count as zero the lines the starting net draws outside a box "
                    "that run into it (by default they are left unknown: a tower below a boxed "
                    "blade, blades a box leaves out)")
+    t.add_argument("--average-with", type=Path, default=None, metavar="NPZ",
+                   help="average the trained weights with these (a net of the same "
+                   "architecture, e.g. the one fine-tuned from) before calibrating and "
+                   "exporting; the checkpoint keeps the trained ones (how the shipped net "
+                   "was made: src/turbinefit/models/README.md)")
+    t.add_argument("--average-weight", type=option(named(FRACTION, "average weight")),
+                   default=0.5, metavar="W", help="the trained weights' share of that average")
+    t.add_argument("--tip-threshold", type=option(named(FRACTION, "tip threshold")),
+                   default=None, metavar="T",
+                   help="the blade tips' threshold (default: the best F1 on the validation "
+                   "renders)")
     t.add_argument("--init", type=Path, default=None,
                    help="weights.npz to start from (default with --labels, --boxes or "
                    "--negatives: the shipped model)")
@@ -178,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
                       negatives=tuple(args.negatives or ()), hold_out=args.hold_out,
                       real_batch=args.real_batch, box_margin=args.box_margin,
                       mil_weight=args.mil_weight, mil_strips=args.mil_strips,
-                      zero_attached=args.zero_attached)
+                      zero_attached=args.zero_attached, average_with=args.average_with,
+                      average_weight=args.average_weight, tip_threshold=args.tip_threshold)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

@@ -44,6 +44,7 @@ cores and may be raised on an otherwise idle machine.
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import math
@@ -77,7 +78,7 @@ from turbinefit.sim.dataset import (
     check_dataset_folder,
     read_spec,
 )
-from turbinefit.train.export import OPSET, export_onnx, load_npz, save_npz
+from turbinefit.train.export import OPSET, average_weights, export_onnx, load_npz, save_npz
 from turbinefit.train.net import (
     STRIDE,
     WIDTHS,
@@ -167,6 +168,13 @@ class TrainConfig:
         zero_attached: also zero the starting net's lines that run into a box from
             outside it (by default they are unknown:
             :func:`~turbinefit.train.weak.attached_lines`).
+        average_with: ``weights.npz`` of a net of the same architecture (typically the
+            one fine-tuned from) that the trained weights are averaged with before they
+            are calibrated and exported (:func:`~turbinefit.train.export.average_weights`;
+            the checkpoint keeps the trained weights).
+        average_weight: the trained weights' share of that average.
+        tip_threshold: the blade tips' threshold, instead of the one of the best F1 on
+            the validation renders (the tip shift is calibrated at it).
     """
 
     out_dir: Path
@@ -200,6 +208,9 @@ class TrainConfig:
     mil_weight: float = 0.05
     mil_strips: int = 3
     zero_attached: bool = False
+    average_with: Path | None = None
+    average_weight: float = 0.5
+    tip_threshold: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -386,14 +397,16 @@ def _write_history(path: Path, history: list[EpochRecord]) -> None:
 
 
 def _calibrated_metrics(net: HeatmapNet, val: Dataset, pos_weight: float,
-                        grid: tuple[float, ...]
+                        grid: tuple[float, ...], tip_threshold: float | None = None
                         ) -> tuple[float, dict[str, float], tuple[float, float, float]]:
     """Held-out loss, metrics at the calibrated thresholds, and those thresholds with the
     tip shift (:attr:`~turbinefit.heatmaps.model_info.ModelInfo.tip_shift_px`) at the tip
-    threshold."""
+    threshold (``tip_threshold`` if given: the grid's nearest)."""
     loss, summaries = evaluate(net, val.images, val.targets, val.points, val.visible,
                                pos_weight, grid)
     point, tip = calibrate_thresholds(summaries)
+    if tip_threshold is not None:
+        tip = min(summaries, key=lambda t: abs(t - tip_threshold))
     tips = summaries[tip]
     metrics = dict(summaries[point], tips_recall=tips["tips_recall"],
                    tips_precision=tips["tips_precision"], tip_shift_px=tips["tip_shift_px"],
@@ -501,6 +514,8 @@ def train(cfg: TrainConfig, progress: bool = True,
                            fine=cfg.fine or 0))
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     scale = net.input_scale
+    if cfg.average_with is not None:  # the same architecture, or refused now, not at the end
+        average_weights(copy.deepcopy(net), cfg.average_with, cfg.average_weight)
     labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
     if cfg.labels is not None:
         labelled = _labelled_arrays(cfg, scale)
@@ -637,11 +652,15 @@ def train(cfg: TrainConfig, progress: bool = True,
         _write_history(out / "history.csv", history)
 
     # Thresholds of the final weights (again if a finished run is run again: re-export).
-    threshold = tip_threshold = 0.3
+    if cfg.average_with is not None:
+        average_weights(net, cfg.average_with, cfg.average_weight)
+        log(f"weights averaged with {cfg.average_with} ({cfg.average_weight:g} of the "
+            "trained ones)")
+    threshold = tip_threshold = 0.3 if cfg.tip_threshold is None else cfg.tip_threshold
     tip_shift = 0.0
     if val is not None:
         _, final, (threshold, tip_threshold, tip_shift) = _calibrated_metrics(
-            net, val, cfg.pos_weight, grid)
+            net, val, cfg.pos_weight, grid, cfg.tip_threshold)
         log(f"held-out, final: {format_metrics(final)}")
     state = net.state_dict()
     fine = fine_width(state)
@@ -652,7 +671,8 @@ def train(cfg: TrainConfig, progress: bool = True,
             f"{', boxes ' + ' '.join(p.name for p in cfg.boxes) if cfg.boxes else ''}"
             f"{', negatives ' + ' '.join(p.name for p in cfg.negatives) if cfg.negatives else ''}"
             f"; {len(history)} epochs"
-            f"{' from ' + Path(init).name if init is not None else ''}")
+            f"{' from ' + Path(init).name if init is not None else ''}"
+            f"{f', averaged with {cfg.average_with.name} ({cfg.average_weight:g})' if cfg.average_with else ''}")
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
