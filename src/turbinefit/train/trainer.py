@@ -664,6 +664,8 @@ def train(cfg: TrainConfig, progress: bool = True,
         log(f"held-out, final: {format_metrics(final)}")
     state = net.state_dict()
     fine = fine_width(state)
+    averaged = ("" if cfg.average_with is None
+                else f", averaged with {cfg.average_with.name} ({cfg.average_weight:g})")
     desc = (f"HeatmapNet widths {architecture(state)[0]}"
             f"{f', fine {fine}' if fine else ''}, {num_parameters(net)} params; "
             f"{cfg.n_images} renders seed {cfg.seed}"
@@ -672,7 +674,7 @@ def train(cfg: TrainConfig, progress: bool = True,
             f"{', negatives ' + ' '.join(p.name for p in cfg.negatives) if cfg.negatives else ''}"
             f"; {len(history)} epochs"
             f"{' from ' + Path(init).name if init is not None else ''}"
-            f"{f', averaged with {cfg.average_with.name} ({cfg.average_weight:g})' if cfg.average_with else ''}")
+            f"{averaged}")
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
