@@ -12,6 +12,7 @@ configurations this measures best for each source.
 Usage::
 
     python benchmarks/bench_defaults.py [--seeds 0 1 ... 11] [--keyframes 200] [--no-track]
+        [--model M.onnx]
 
 Prints tables and writes ``benchmarks/results/bench_defaults.json``.
 """
@@ -104,6 +105,9 @@ def main() -> None:
     ap.add_argument("--no-track", action="store_true", help="fits only")
     ap.add_argument("--candidates", nargs="+", metavar="NAME",
                     help="only these configurations (names of CANDIDATES)")
+    ap.add_argument("--model", type=Path, default=None,
+                    help="the ONNX model the photos' heat-maps are detected with (default: "
+                         "the shipped one)")
     ap.add_argument("--out", type=Path, default=RESULTS / "bench_defaults.json")
     args = ap.parse_args()
     chosen = {src: {n: c for n, c in CANDIDATES[src].items()
@@ -116,7 +120,7 @@ def main() -> None:
         folder = read_flight_folder(simulate(seed, args.keyframes))
         for source_name in args.sources:
             source = (FileHeatmaps(folder, mmap=False) if source_name == "ideal"
-                      else PhotoHeatmaps(folder))
+                      else PhotoHeatmaps(folder, args.model))
             t0 = time.perf_counter()
             flight = folder.flight(source.stack(), source.camera)
             load_s = time.perf_counter() - t0

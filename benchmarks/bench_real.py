@@ -12,7 +12,17 @@ close-ups), 1024 x 1024 drone photos (half of them augmented copies, ``transform
 left out here), and one box per photo in ``annotations/turbine.csv`` and
 ``annotations/blade.csv`` (``filename,width,height,class,xmin,ymin,xmax,ymax``).
 
-For the first ``--n`` original photos of each class (all with ``--n 0``) it runs
+**Held out.** The set may be trained on (``turbinefit train --boxes``), except for a
+held-out part fixed before any training by :func:`turbinefit.eval.holdout.is_held_out`: a
+photo is held out when the SHA-256 of its original's name (``transformedDJI_0049.jpg``
+counts as ``DJI_0049.jpg``, so an augmented copy is always on its original's side) is
+below 0.4 as a number in [0, 1): 110 of the 253 whole-turbine originals and 93 of the 282
+blade originals. The figures are of the held-out part only (``--split held-out``, the
+default; the script stops if it is under 30 % of a class); ``--split all`` measures every
+original, as the figures before training on the set were (their first 80 of each class).
+
+For the first ``--n`` original photos of each class of the split (all with ``--n 0``, the
+default) it runs
 ``turbinefit evaluate --boxes`` (:func:`turbinefit.jobs.evaluate.evaluate_regions`, boxes
 grown by 5 % of their size a side) and prints, per class: the share of the line
 heat-maps' mass inside the grown box, the share of photos where a turbine is found, and
@@ -40,7 +50,18 @@ leaves out (``tower``, ``nacelle``, ``blade``, ``other-turbine``), a polygon ``x
 in photo px (pixel edges) drawn by hand from looking at each photo on a 64-px grid (to
 about 10-20 px). The line mass inside the grown box or any part (each part grown by 2 map
 px, as the renders' true lines below) is then given per view, and over the photos of
-``--views``.
+``--views``, with the point peaks outside the box and parts.
+
+**Real negatives.** ``--negatives DIR`` (repeatable) runs the net on the turbine-free
+photos of DIR (not its subfolders; the same held-out rule picks the photos measured, so that
+photos a net was trained on as negatives, ``turbinefit train --negatives``, are not
+scored) and gives per folder: the share of photos whose maps a fit could take for a
+turbine (:func:`turbinefit.eval.regions.could_be_evidence` at the fit's default
+correspondence threshold, 0.3: an upper bound of the evidence share the verdict of a
+flight of such photos would see; below 0.2 it is ``failed``, below 0.5 ``doubtful``),
+the mean of the line channels' per-pixel maximum, the photos with any channel above the
+model's threshold and the point peaks per photo. ``--untrained DIR`` measures a folder
+no net is trained on (thermal photos) the same way, every photo of it.
 """
 
 from __future__ import annotations
@@ -56,11 +77,15 @@ import numpy as np
 from common import DATA, HERE, RESULTS, write_json
 
 from turbinefit.detect import DetectOptions, DetectorPool, HeatmapDetector
+from turbinefit.eval.holdout import is_held_out, original_name
 from turbinefit.eval.regions import (
+    LINE_CHANNELS,
     bottom_rows,
     box_region,
+    could_be_evidence,
     grow_box,
     line_mass_inside,
+    point_peaks,
     polygon_region,
 )
 from turbinefit.heatmaps.channels import CHANNEL_NAMES
@@ -77,6 +102,10 @@ PART_GROW_PX = 2
 TOWER_LINE = CHANNEL_NAMES.index("line_tower")
 #: Photo rows [px of the photo] of the bottom-rows artefact.
 BOTTOM_PX = 40
+#: The held-out part must hold at least this share of each class.
+MIN_HELD_OUT = 0.3
+#: The fit's default correspondence threshold (FitConfig.corr_threshold).
+CORR_THRESHOLD = 0.3
 
 
 def renders_of_each_shape(n: int, model: Path | None) -> None:
@@ -128,10 +157,11 @@ def read_parts(path: Path) -> dict[str, list[list[float]]]:
 
 
 def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
-               polygons: list[list[float]], grow: float) -> float:
-    """Share of ``maps``' line mass inside ``row``'s box (grown by ``grow``, as the
-    ``evaluate`` run grew it) or any of ``polygons`` (as ``evaluate`` reads outlines,
-    grown by :data:`PART_GROW_PX` map px)."""
+               polygons: list[list[float]], grow: float, thresholds: tuple[float, float]
+               ) -> tuple[float, int]:
+    """(share of ``maps``' line mass, point peaks above ``thresholds`` (points, tips)
+    outside) ``row``'s box (grown by ``grow``, as the ``evaluate`` run grew it) or any of
+    ``polygons`` (as ``evaluate`` reads outlines, grown by :data:`PART_GROW_PX` map px)."""
     from scipy import ndimage
 
     (pw, ph), (h, w) = photo_size, maps.shape[1:]
@@ -140,12 +170,39 @@ def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
     if polygons:
         parts = polygon_region([tuple(xy) for xy in polygons], photo_size, (w, h))
         region |= ndimage.binary_dilation(parts, iterations=PART_GROW_PX)
-    return line_mass_inside(maps, region)
+    pk = point_peaks(maps, *thresholds).astype(int)
+    return line_mass_inside(maps, region), int((~region[pk[:, 1], pk[:, 0]]).sum())
+
+
+def negatives(pool: DetectorPool, folder: Path, split: str) -> dict[str, float]:
+    """Figures of the turbine-free photos of ``folder`` (its ``split`` part), printed."""
+    from turbinefit.io.images import list_images
+
+    photos = [p for p in list_images([folder]) if split == "all" or is_held_out(p.name)]
+    if not photos:
+        sys.exit(f"{folder}: no photos in the {split} part")
+    info = pool.detector.info
+
+    def run(det: HeatmapDetector, path: Path) -> tuple[bool, float, bool, int]:
+        hm = det.detect_small(read_image(path, reduce_to=(640, 640)))
+        return (could_be_evidence(hm, CORR_THRESHOLD),
+                float(hm[list(LINE_CHANNELS)].max(axis=0).mean()),
+                bool(hm.max() > info.threshold),
+                len(point_peaks(hm, info.threshold, info.tip_threshold)))
+
+    ev, line, found, peaks = zip(*pool.map(run, photos), strict=True)
+    out = {"photos": len(photos), "could_be_evidence": float(np.mean(ev)),
+           "line_mean": float(np.mean(line)), "found": float(np.mean(found)),
+           "peaks_per_photo": float(np.mean(peaks))}
+    print(f"negatives {folder} ({split}, {len(photos)} photos): could be evidence "
+          f"{out['could_be_evidence']:.3f}, line mean {out['line_mean']:.4f}, found "
+          f"{out['found']:.3f}, point peaks per photo {out['peaks_per_photo']:.2f}")
+    return out
 
 
 def per_view(views_csv: Path, rows: list[list[str]], inside: dict[str, float],
-             tower_share: dict[str, float], turbine: dict[str, float]
-             ) -> dict[str, dict[str, float]]:
+             tower_share: dict[str, float], turbine: dict[str, float],
+             outside: dict[str, int]) -> dict[str, dict[str, float]]:
     """The blade photos' line mass inside the box, on the turbine (box or parts) and share
     in the tower channel, per view of ``views_csv`` and over all the photos it lists
     (photos it does not list are left out); printed."""
@@ -160,11 +217,13 @@ def per_view(views_csv: Path, rows: list[list[str]], inside: dict[str, float],
         out[view] = {"photos": len(names),
                      "line_mass_inside": float(np.mean([inside[n] for n in names])),
                      "line_mass_on_turbine": float(np.mean([turbine[n] for n in names])),
-                     "tower_channel_share": float(np.mean([tower_share[n] for n in names]))}
+                     "tower_channel_share": float(np.mean([tower_share[n] for n in names])),
+                     "peaks_outside_turbine": int(sum(outside[n] for n in names))}
         print(f"blade photos showing {view:10s} {len(names):3d}: line mass inside the box "
               f"{out[view]['line_mass_inside']:.3f}, on the turbine (box or parts) "
               f"{out[view]['line_mass_on_turbine']:.3f}, in the tower channel "
-              f"{out[view]['tower_channel_share']:.3f}")
+              f"{out[view]['tower_channel_share']:.3f}, point peaks outside the turbine "
+              f"{out[view]['peaks_outside_turbine']}")
     return out
 
 
@@ -173,7 +232,16 @@ def main() -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("photos_dir", type=Path,
                     help="the data set's 'Wind turbines and blades' folder (see below)")
-    ap.add_argument("--n", type=int, default=80, help="photos per class (0 = all originals)")
+    ap.add_argument("--n", type=int, default=0,
+                    help="photos per class (0 = all originals of the split)")
+    ap.add_argument("--split", choices=("held-out", "all"), default="held-out",
+                    help="the held-out part (turbinefit.eval.holdout) or every original")
+    ap.add_argument("--negatives", type=Path, action="append", default=[], metavar="DIR",
+                    help="a folder of turbine-free photos (its held-out part is measured); "
+                         "repeat for several")
+    ap.add_argument("--untrained", type=Path, action="append", default=[], metavar="DIR",
+                    help="a folder of photos no net is trained on (thermal photos, ...), "
+                         "measured as --negatives, in full; repeat for several")
     ap.add_argument("--model", type=Path, default=None)
     ap.add_argument("--input-scale", type=float, default=1.0,
                     help="run the net at this multiple of its input size (test-time zoom off "
@@ -198,9 +266,18 @@ def main() -> None:
     DATA.mkdir(exist_ok=True)
     RESULTS.mkdir(exist_ok=True)
     rows: list[list[str]] = []
+    held_share: dict[str, float] = {}
     for cls in CLASSES:
         with open(root / "annotations" / f"{cls}.csv", newline="") as f:
-            mine = [r for r in csv.reader(f) if r and not r[0].startswith("transformed")]
+            every = [r for r in csv.reader(f) if r and original_name(r[0]) == r[0]]
+        held = [r for r in every if is_held_out(r[0])]
+        held_share[cls] = len(held) / max(len(every), 1)
+        if held_share[cls] < MIN_HELD_OUT:
+            sys.exit(f"{root}: only {len(held)} of the {len(every)} {cls} originals are held "
+                     f"out, under {MIN_HELD_OUT:.0%}")
+        mine = held if args.split == "held-out" else every
+        print(f"{cls}: {len(held)} of {len(every)} originals held out "
+              f"({held_share[cls]:.1%}); measuring {args.split}")
         rows += mine[:args.n] if args.n > 0 else mine
     with tempfile.TemporaryDirectory() as tmp:
         boxes = Path(tmp) / "boxes.csv"
@@ -215,6 +292,7 @@ def main() -> None:
                   for p in json.loads((Path(tmp) / "report.json").read_text())["photos"]}
     model = Path(rep.model)
     result: dict[str, object] = {"photos_dir": root.name, "n_per_class": args.n,
+                                 "split": args.split, "held_out_share": held_share,
                                  "input_scale": args.input_scale,
                                  "model": model.name, "grow": rep.grow,
                                  "metrics": rep.summary}
@@ -233,6 +311,8 @@ def main() -> None:
     artefact = {}
     tower_share: dict[str, float] = {}
     turbine: dict[str, float] = {}
+    outside: dict[str, int] = {}
+    thresholds = (pool.detector.info.threshold, pool.detector.info.tip_threshold)
     for cls in CLASSES:
         mine = [r for r in rows if r[3] == cls]
         found = list(pool.map(maps, mine))
@@ -243,10 +323,15 @@ def main() -> None:
         for r, ((ph, pw), hm) in zip(mine, found, strict=True):
             total = float(hm[TOWER_LINE:].sum())
             tower_share[r[0]] = float(hm[TOWER_LINE].sum()) / total if total > 0 else 0.0
-            turbine[r[0]] = on_turbine(hm, r, (pw, ph), parts.get(r[0], []), rep.grow)
+            turbine[r[0]], outside[r[0]] = on_turbine(hm, r, (pw, ph), parts.get(r[0], []),
+                                                      rep.grow, thresholds)
     result["bottom_rows"] = artefact
     if args.views.is_file():
-        result["views"] = per_view(args.views, rows, inside, tower_share, turbine)
+        result["views"] = per_view(args.views, rows, inside, tower_share, turbine, outside)
+    if args.negatives:
+        result["negatives"] = {str(d): negatives(pool, d, args.split) for d in args.negatives}
+    if args.untrained:
+        result["untrained"] = {str(d): negatives(pool, d, "all") for d in args.untrained}
     out = args.out or RESULTS / default_name(args.model, args.input_scale)
     write_json(out, result)
     print(f"wrote {out}; worst photos: {DATA / 'real_worst.png'}")

@@ -411,6 +411,23 @@ def _cases() -> list[Case]:
         r"reaches outside its 64x48 image")
     add("evaluate-polygon-two-points", boxes, outline([[0, 0, 10, 10]]), r"o\.json",
         r"three or more points")
+    # -- train from boxes and turbine-free photos (issue 50)
+    train = ("train", "--out", "{w}/out", "--images", "4", "--val-images", "2", "--quiet")
+    add("train-boxes-without-images", cmd(*train, "--boxes", "{w}/flight/b.csv"),
+        write("b.csv", "2.000000.png,64,48,turbine,1,1,30,40\n"), r"boxes",
+        r"--boxes and --boxes-images go together")
+    add("train-boxes-photo-missing", cmd(*train, "--boxes", "{w}/flight/b.csv",
+                                         "--boxes-images", "{w}/flight/images"),
+        write("b.csv", "nothing.png,64,48,turbine,1,1,30,40\n"), r"b\.csv:1",
+        r"photo not found")
+    add("train-boxes-outside", cmd(*train, "--boxes", "{w}/flight/b.csv",
+                                   "--boxes-images", "{w}/flight/images"),
+        write("b.csv", "2.000000.png,64,48,turbine,1,1,70,40\n"), r"b\.csv:1",
+        r"outside its 64x48 image")
+    add("train-hold-out-above-1", cmd(*train, "--negatives", "{w}/flight/images",
+                                      "--hold-out", "1.5"), None, r"--hold-out", usage=True)
+    add("train-negatives-empty", cmd(*train, "--negatives", "{w}/flight/empty"),
+        lambda f: (f / "empty").mkdir(), r"empty", r"no image files")
     add("report-rows-fifo", cmd("report", "{w}/flight/exp"),
         both(write("exp/sweep.yaml", "study: unary\n"), fifo("exp/rows.csv")), r"exp",
         hang=True)

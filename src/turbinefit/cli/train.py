@@ -8,7 +8,19 @@ import math
 from pathlib import Path
 from typing import Any
 
-from turbinefit.cli.common import DefaultsFormatter, number, positive_int, seed, whole_nonneg
+from turbinefit.cli.common import (
+    DefaultsFormatter,
+    number,
+    option,
+    positive_int,
+    seed,
+    whole_nonneg,
+)
+from turbinefit.eval.holdout import HELD_OUT_FRACTION
+from turbinefit.io.quantities import FRACTION, Quantity, named
+
+#: ``--mil-weight``: the multiple-instance term's weight against the per-pixel losses.
+MIL_WEIGHT = Quantity("multiple-instance weight", "", 0.0, 100.0)
 
 
 def channel_weights(text: str) -> tuple[float, ...]:
@@ -54,7 +66,9 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
         "detection threshold and export MODEL_DIR/model.onnx (use it with --model) and "
         "weights.npz. With --labels, fine-tunes (from the shipped model unless --init) on "
         "real photos labelled with COCO keypoints base, tower_top, hub, tip_1, tip_2, tip_3 "
-        "(CVAT / Label Studio export) together with the renders.",
+        "(CVAT / Label Studio export) together with the renders. With --boxes and "
+        "--negatives, also on real photos labelled only with boxes and on turbine-free "
+        "photos (weak losses; src/turbinefit/models/README.md).",
         formatter_class=DefaultsFormatter)
     t.add_argument("--out", dest="out_dir", metavar="MODEL_DIR", type=Path, required=True,
                    help="output folder: checkpoint.pt, history.csv, model.onnx, weights.npz, "
@@ -81,8 +95,49 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     t.add_argument("--labels", type=Path, default=None, help="COCO keypoint JSON of real photos")
     t.add_argument("--images-dir", type=Path, default=None,
                    help="folder the COCO file_name entries are relative to")
+    t.add_argument("--boxes", action="append", type=Path, default=None, metavar="BOXES",
+                   help="real photos labelled with boxes (a CSV filename,width,height,class,"
+                   "xmin,ymin,xmax,ymax or a COCO JSON with bbox, as evaluate --boxes reads) "
+                   "to train on with weak losses: every channel zero outside each box grown by "
+                   "--box-margin, some line along each box; repeat for several")
+    t.add_argument("--boxes-images", type=Path, default=None, metavar="DIR",
+                   help="folder of the --boxes photos (DIR/filename or DIR/class/filename)")
+    t.add_argument("--negatives", action="append", type=Path, default=None, metavar="DIR",
+                   help="a folder of turbine-free real photos (roads, fields, roofs, pylons) to "
+                   "train on with every channel zero; repeat for several")
+    t.add_argument("--hold-out", type=option(named(FRACTION, "held-out fraction")),
+                   default=HELD_OUT_FRACTION, metavar="F",
+                   help="leave out of --boxes and --negatives the photos whose original's name "
+                   "hashes below F (turbinefit.eval.holdout; what benchmarks/bench_real.py "
+                   "measures on); 0 trains on all")
+    t.add_argument("--real-batch", type=positive_int, default=8, metavar="N",
+                   help="--boxes / --negatives photos per step, beside --batch renders")
+    t.add_argument("--box-margin", type=option(named(FRACTION, "box margin")), default=0.1,
+                   metavar="F",
+                   help="share of a box's size it is grown by on each side before the outside "
+                   "counts as zero (at least 2 heat-map px)")
+    t.add_argument("--mil-weight", type=option(MIL_WEIGHT), default=0.05, metavar="W",
+                   help="weight of the term asking for some line in each strip of a box")
+    t.add_argument("--mil-strips", type=positive_int, default=3, metavar="K",
+                   help="strips a box is cut into across its long side, each asked for line")
+    t.add_argument("--zero-attached", action="store_true",
+                   help="also count as zero the lines the starting net draws outside a box "
+                   "that run into it (by default they are left unknown: a tower below a boxed "
+                   "blade, blades a box leaves out)")
+    t.add_argument("--average-with", type=Path, default=None, metavar="NPZ",
+                   help="average the trained weights with these (a net of the same "
+                   "architecture, e.g. the one fine-tuned from) before calibrating and "
+                   "exporting; the checkpoint keeps the trained ones (how the shipped net "
+                   "was made: src/turbinefit/models/README.md)")
+    t.add_argument("--average-weight", type=option(named(FRACTION, "average weight")),
+                   default=0.5, metavar="W", help="the trained weights' share of that average")
+    t.add_argument("--tip-threshold", type=option(named(FRACTION, "tip threshold")),
+                   default=None, metavar="T",
+                   help="the blade tips' threshold (default: the best F1 on the validation "
+                   "renders)")
     t.add_argument("--init", type=Path, default=None,
-                   help="weights.npz to start from (default with --labels: the shipped model)")
+                   help="weights.npz to start from (default with --labels, --boxes or "
+                   "--negatives: the shipped model)")
     t.add_argument("--input-scale", type=int, choices=(1, 2), default=2,
                    help="the net's input photos are this many times its 160x120 heat-maps "
                    "(2: 320x240 photos, as the shipped model; --init weights of a 1 net are lifted "
@@ -129,7 +184,13 @@ def run(args: argparse.Namespace) -> int:
                       labels=args.labels, images_dir=args.images_dir, init=args.init,
                       max_steps=args.max_steps, input_scale=args.input_scale,
                       pos_weight=args.pos_weight, channel_weights=args.channel_weights,
-                      widths=args.widths, fine=args.fine, closeup_fraction=args.closeups)
+                      widths=args.widths, fine=args.fine, closeup_fraction=args.closeups,
+                      boxes=tuple(args.boxes or ()), boxes_images=args.boxes_images,
+                      negatives=tuple(args.negatives or ()), hold_out=args.hold_out,
+                      real_batch=args.real_batch, box_margin=args.box_margin,
+                      mil_weight=args.mil_weight, mil_strips=args.mil_strips,
+                      zero_attached=args.zero_attached, average_with=args.average_with,
+                      average_weight=args.average_weight, tip_threshold=args.tip_threshold)
     res = train(cfg, progress=not args.quiet, log=print)
     print(f"wrote {res.model} (threshold {res.threshold:.2f}, {res.parameters:,} parameters)")
     return 0

@@ -155,6 +155,19 @@ def point_peaks(maps: NDArray[np.floating], threshold: float, tip_threshold: flo
     return np.concatenate(found).reshape(-1, 2)
 
 
+def could_be_evidence(maps: NDArray[np.floating], threshold: float) -> bool:
+    """Whether a fit could count these maps (7, h, w) as a keyframe with heat-map
+    evidence (:mod:`turbinefit.solver.verdict`): some channel reaches ``threshold`` (the
+    fit's ``corr_threshold``: a correspondence can be found there) and no channel is at or
+    above it over more than :data:`~turbinefit.solver.verdict.MAX_EVIDENCE_AREA` of the
+    map. Whether it does also depends on where the model projects: the share of a
+    flight's photos whose maps could is an upper bound of its evidence share."""
+    from turbinefit.solver.verdict import MAX_EVIDENCE_AREA
+
+    high = maps >= threshold
+    return bool(high.any()) and float(high.mean(axis=(1, 2)).max()) <= MAX_EVIDENCE_AREA
+
+
 def bottom_rows(maps: NDArray[np.floating], rows: int) -> tuple[float, float]:
     """(mean over the bottom ``rows`` rows, mean over the whole map) of the line
     channels' per-pixel maximum."""

@@ -87,6 +87,24 @@ def load_npz(path: Path, input_scale: int | None = None,
     return net
 
 
+def average_weights(net: HeatmapNet, path: Path, weight: float) -> None:
+    """Replace ``net``'s weights by ``weight`` times them plus ``1 - weight`` times those of
+    the ``weights.npz`` at ``path`` (a "model soup": a net fine-tuned from another, averaged
+    with it, often keeps what each does best). Both must be the same architecture; integer
+    buffers (batch norm's counters) are ``net``'s.
+
+    Raises:
+        InputError: ``path`` unreadable, or not the same architecture.
+    """
+    other = load_npz(path).state_dict()
+    mine = net.state_dict()
+    if other.keys() != mine.keys() or any(other[k].shape != mine[k].shape for k in mine):
+        raise InputError("not the weights of a net of the same architecture as the one "
+                         "trained", path=path)
+    net.load_state_dict({k: (weight * v.double() + (1.0 - weight) * other[k].double()).to(v.dtype)
+                         if v.is_floating_point() else v for k, v in mine.items()})
+
+
 def save_npz(net: torch.nn.Module, path: Path) -> None:
     buf = io.BytesIO()
     np.savez(buf, **{k: v.detach().cpu().numpy() for k, v in net.state_dict().items()})

@@ -1,4 +1,5 @@
-"""Train the heat-map CNN on rendered photos (and optionally labelled real photos).
+"""Train the heat-map CNN on rendered photos (and optionally labelled real photos, real
+photos labelled with boxes and turbine-free real photos).
 
 :func:`train` renders (or reuses) a dataset (:mod:`turbinefit.sim.dataset`), trains
 :class:`~turbinefit.train.net.HeatmapNet` with AdamW and a one-cycle learning rate,
@@ -25,6 +26,12 @@ each channel's loss (both its positive and its background pixels, so each channe
 per-pixel optimum is unchanged): they only share the net's effort differently. The shipped
 model's last fine-tunings weighted the tip channel 3, the nacelle 5 and the blade line 2.
 
+Real photos with boxes (``boxes``) and turbine-free photos (``negatives``) have no
+per-pixel targets: their loss is :func:`turbinefit.train.weak.weak_loss` (zero outside
+each box grown by ``box_margin``, some line along each box), on ``real_batch`` of them
+beside each step's ``batch`` renders, added to the renders' loss; photos the benchmark
+holds out (:func:`turbinefit.eval.holdout.is_held_out` at ``hold_out``) are left out.
+
 Augmentation: horizontal flips (a mirrored turbine is still a turbine) and mild
 brightness / contrast / colour jitter; the renderer provides the rest of the variety.
 
@@ -37,11 +44,12 @@ cores and may be raised on an otherwise idle machine.
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -54,6 +62,7 @@ from tqdm import tqdm
 
 from turbinefit.errors import InputError
 from turbinefit.eval.detection import DetectionStats
+from turbinefit.eval.holdout import HELD_OUT_FRACTION
 from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.heatmaps.model_info import ModelInfo
 from turbinefit.heatmaps.targets import TARGET_SIGMA_PX
@@ -69,7 +78,7 @@ from turbinefit.sim.dataset import (
     check_dataset_folder,
     read_spec,
 )
-from turbinefit.train.export import OPSET, export_onnx, load_npz, save_npz
+from turbinefit.train.export import OPSET, average_weights, export_onnx, load_npz, save_npz
 from turbinefit.train.net import (
     STRIDE,
     WIDTHS,
@@ -78,6 +87,13 @@ from turbinefit.train.net import (
     architecture,
     fine_width,
     num_parameters,
+)
+from turbinefit.train.weak import (
+    WeakPhoto,
+    WeakPhotos,
+    attached_lines,
+    load_weak_photos,
+    weak_loss,
 )
 
 #: Seed offset of the held-out renders (independent of the training renders).
@@ -92,7 +108,8 @@ ZOOM = True
 #: TrainConfig fields that must match when a run is resumed from its checkpoint.
 _RESUME_KEYS = ("n_images", "val_images", "epochs", "batch", "lr", "seed", "labels",
                 "input_scale", "pos_weight", "channel_weights", "widths", "fine", "add_data",
-                "closeup_fraction")
+                "closeup_fraction", "boxes", "boxes_images", "negatives", "hold_out",
+                "real_batch", "box_margin", "mil_weight", "mil_strips", "zero_attached")
 
 
 @dataclass
@@ -136,6 +153,28 @@ class TrainConfig:
             nothing (:func:`~turbinefit.train.net.add_fine`). None: as ``init`` (or 0).
         closeup_fraction: share of the rendered training and validation views that are
             close-ups of one blade or the tower (:class:`~turbinefit.sim.dataset.DatasetSpec`).
+        boxes: box files (CSV or COCO, :mod:`turbinefit.io.regions`) of real photos to
+            train on with the weak losses (:mod:`turbinefit.train.weak`).
+        boxes_images: folder the box files' photos are in.
+        negatives: folders of turbine-free real photos (every channel zero).
+        hold_out: photos :func:`~turbinefit.eval.holdout.is_held_out` at this fraction are
+            left out of ``boxes`` and ``negatives`` (0: none).
+        real_batch: real photos of ``boxes`` and ``negatives`` per step, beside ``batch``
+            renders.
+        box_margin: a box is grown by this share of its size on each side (at least
+            :data:`~turbinefit.train.weak.MIN_MARGIN_PX` map px) before the outside is zero.
+        mil_weight: weight of the multiple-instance term (some line in each strip of a box).
+        mil_strips: strips each box is cut into across its long side.
+        zero_attached: also zero the starting net's lines that run into a box from
+            outside it (by default they are unknown:
+            :func:`~turbinefit.train.weak.attached_lines`).
+        average_with: ``weights.npz`` of a net of the same architecture (typically the
+            one fine-tuned from) that the trained weights are averaged with before they
+            are calibrated and exported (:func:`~turbinefit.train.export.average_weights`;
+            the checkpoint keeps the trained weights).
+        average_weight: the trained weights' share of that average.
+        tip_threshold: the blade tips' threshold, instead of the one of the best F1 on
+            the validation renders (the tip shift is calibrated at it).
     """
 
     out_dir: Path
@@ -160,6 +199,18 @@ class TrainConfig:
     widths: Widths | None = None
     fine: int | None = None
     closeup_fraction: float = CLOSEUP_FRACTION
+    boxes: tuple[Path, ...] = ()
+    boxes_images: Path | None = None
+    negatives: tuple[Path, ...] = ()
+    hold_out: float = HELD_OUT_FRACTION
+    real_batch: int = 8
+    box_margin: float = 0.1
+    mil_weight: float = 0.05
+    mil_strips: int = 3
+    zero_attached: bool = False
+    average_with: Path | None = None
+    average_weight: float = 0.5
+    tip_threshold: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_images", "epochs", "batch", "threads"):
@@ -188,6 +239,16 @@ class TrainConfig:
                              f"{','.join(str(w) for w in cw)}", field="channel_weights")
         if (self.labels is None) != (self.images_dir is None):
             raise InputError("--labels and --images-dir go together", field="labels")
+        if bool(self.boxes) != (self.boxes_images is not None):
+            raise InputError("--boxes and --boxes-images go together", field="boxes")
+        for name in ("real_batch", "mil_strips"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be at least 1, got {getattr(self, name)}", field=name)
+        for name in ("hold_out", "box_margin"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise InputError(f"must be in [0, 1], got {getattr(self, name)}", field=name)
+        if not (self.mil_weight >= 0 and math.isfinite(self.mil_weight)):
+            raise InputError(f"must be >= 0, got {self.mil_weight}", field="mil_weight")
 
 
 class _Arrays(torch.utils.data.Dataset[tuple[torch.Tensor, torch.Tensor]]):
@@ -336,14 +397,16 @@ def _write_history(path: Path, history: list[EpochRecord]) -> None:
 
 
 def _calibrated_metrics(net: HeatmapNet, val: Dataset, pos_weight: float,
-                        grid: tuple[float, ...]
+                        grid: tuple[float, ...], tip_threshold: float | None = None
                         ) -> tuple[float, dict[str, float], tuple[float, float, float]]:
     """Held-out loss, metrics at the calibrated thresholds, and those thresholds with the
     tip shift (:attr:`~turbinefit.heatmaps.model_info.ModelInfo.tip_shift_px`) at the tip
-    threshold."""
+    threshold (``tip_threshold`` if given: the grid's nearest)."""
     loss, summaries = evaluate(net, val.images, val.targets, val.points, val.visible,
                                pos_weight, grid)
     point, tip = calibrate_thresholds(summaries)
+    if tip_threshold is not None:
+        tip = min(summaries, key=lambda t: abs(t - tip_threshold))
     tips = summaries[tip]
     metrics = dict(summaries[point], tips_recall=tips["tips_recall"],
                    tips_precision=tips["tips_precision"], tip_shift_px=tips["tip_shift_px"],
@@ -404,6 +467,33 @@ def _added_dataset(folder: Path, main: tuple[Path, DatasetSpec]) -> Dataset:
     return ds
 
 
+def _photo_maps(net: HeatmapNet, views: WeakPhotos
+                ) -> Callable[[NDArray[np.uint8]], NDArray[np.float32]]:
+    """The maps (7, h, w) ``net`` makes of a whole photo, letterboxed as
+    :class:`~turbinefit.train.weak.WeakPhotos` letterboxes it, cut to the photo."""
+    s = net.input_scale
+
+    def maps(image: NDArray[np.uint8]) -> NDArray[np.float32]:
+        canvas, _, (a0, b0, a1, b1) = views.view(WeakPhoto(image, (), ""), True, np.zeros(3))
+        x = torch.from_numpy(np.ascontiguousarray(canvas.transpose(2, 0, 1)))[None]
+        net.eval()
+        with torch.no_grad():
+            prob = torch.sigmoid(forward(net, x.float() / 255.0))[0].numpy()
+        net.train()
+        return prob[:, int(b0) // s:int(b1) // s, int(a0) // s:int(a1) // s]
+    return maps
+
+
+def _endless(data: WeakPhotos, batch: int, seed: int
+             ) -> Iterator[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+    """Batches of ``data`` in shuffled passes, without end."""
+    g = torch.Generator().manual_seed(seed)
+    while True:
+        yield from torch.utils.data.DataLoader(data, batch_size=batch, shuffle=True,
+                                               drop_last=len(data) >= batch, generator=g,
+                                               num_workers=0)
+
+
 def train(cfg: TrainConfig, progress: bool = True,
           log: Callable[[str], None] = print) -> TrainResult:
     """Train (or resume training) as ``cfg`` says; see the module docstring."""
@@ -414,7 +504,7 @@ def train(cfg: TrainConfig, progress: bool = True,
 
     # Everything that can be wrong with the inputs is checked before anything is written.
     init = cfg.init
-    if init is None and cfg.labels is not None:
+    if init is None and (cfg.labels is not None or cfg.boxes or cfg.negatives):
         from turbinefit.detect import default_model_path
         init = default_model_path().with_suffix(".npz")
     net = (load_npz(Path(init), None if cfg.init is None else cfg.input_scale, cfg.widths,
@@ -424,10 +514,26 @@ def train(cfg: TrainConfig, progress: bool = True,
                            fine=cfg.fine or 0))
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     scale = net.input_scale
+    if cfg.average_with is not None:  # the same architecture, or refused now, not at the end
+        average_weights(copy.deepcopy(net), cfg.average_with, cfg.average_weight)
     labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
     if cfg.labels is not None:
         labelled = _labelled_arrays(cfg, scale)
         log(f"{len(labelled[0])} labelled photos from {cfg.labels}")
+    weak: WeakPhotos | None = None
+    if cfg.boxes or cfg.negatives:
+        photos, left_out = load_weak_photos(cfg.boxes, cfg.boxes_images, cfg.negatives,
+                                            cfg.hold_out)
+        if not photos:
+            raise InputError("no photos left to train on after the held-out part",
+                             field="boxes" if cfg.boxes else "negatives")
+        weak = WeakPhotos(photos, (MODEL_WIDTH * scale, MODEL_HEIGHT * scale), scale,
+                          cfg.box_margin, cfg.mil_strips)
+        if not cfg.zero_attached:
+            weak.photos = attached_lines(photos, _photo_maps(net, weak), cfg.box_margin)
+        n_boxed = sum(1 for p in photos if p.boxes)
+        log(f"{n_boxed} real photos with boxes, {len(photos) - n_boxed} turbine-free; "
+            f"{left_out} held out (turbinefit.eval.holdout, fraction {cfg.hold_out:g})")
     resume: dict[str, Any] | None = None
     if ckpt_path.exists():
         try:
@@ -492,14 +598,26 @@ def train(cfg: TrainConfig, progress: bool = True,
         g = torch.Generator().manual_seed(cfg.seed * 1000 + epoch)
         loader = torch.utils.data.DataLoader(train_set, batch_size=cfg.batch, shuffle=True,
                                              drop_last=True, generator=g, num_workers=0)
+        real = None if weak is None else _endless(weak, cfg.real_batch, cfg.seed * 1000 + epoch)
         net.train()
         t0 = time.perf_counter()
         seen, loss_sum = 0, 0.0
+        out_sum, mil_sum, peak_sum = 0.0, 0.0, 0.0
         bar = tqdm(loader, total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}",
                    unit="step", disable=not progress, leave=False)
         for x, y in bar:
-            logits = forward(net, _jitter(x))
-            loss = heatmap_loss(logits, y, cfg.pos_weight, cfg.channel_weights)
+            if real is None:
+                logits = forward(net, _jitter(x))
+                loss = heatmap_loss(logits, y, cfg.pos_weight, cfg.channel_weights)
+            else:  # renders and real photos in one pass
+                xr, known, strips = next(real)
+                logits = forward(net, _jitter(torch.cat([x, xr])))
+                loss = heatmap_loss(logits[:len(x)], y, cfg.pos_weight, cfg.channel_weights)
+                wl, o, m, pk = weak_loss(logits[len(x):], known, strips,
+                                         cfg.channel_weights, cfg.mil_weight)
+                loss = loss + wl
+                out_sum, mil_sum = out_sum + o * len(x), mil_sum + m * len(x)
+                peak_sum += pk * len(x)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -517,6 +635,10 @@ def train(cfg: TrainConfig, progress: bool = True,
         val_loss = float("nan")
         if val is not None:
             val_loss, metrics, _ = _calibrated_metrics(net, val, cfg.pos_weight, grid)
+        if real is not None:
+            metrics.update(real_outside_loss=out_sum / max(seen, 1),
+                           real_mil_loss=mil_sum / max(seen, 1),
+                           real_peak_loss=peak_sum / max(seen, 1))
         rec = EpochRecord(epoch + 1, loss_sum / max(seen, 1), val_loss, rate, metrics)
         history.append(rec)
         log(f"epoch {epoch + 1}/{cfg.epochs}: loss {rec.train_loss:.4f} held-out "
@@ -530,19 +652,29 @@ def train(cfg: TrainConfig, progress: bool = True,
         _write_history(out / "history.csv", history)
 
     # Thresholds of the final weights (again if a finished run is run again: re-export).
-    threshold = tip_threshold = 0.3
+    if cfg.average_with is not None:
+        average_weights(net, cfg.average_with, cfg.average_weight)
+        log(f"weights averaged with {cfg.average_with} ({cfg.average_weight:g} of the "
+            "trained ones)")
+    threshold = tip_threshold = 0.3 if cfg.tip_threshold is None else cfg.tip_threshold
     tip_shift = 0.0
     if val is not None:
         _, final, (threshold, tip_threshold, tip_shift) = _calibrated_metrics(
-            net, val, cfg.pos_weight, grid)
+            net, val, cfg.pos_weight, grid, cfg.tip_threshold)
         log(f"held-out, final: {format_metrics(final)}")
     state = net.state_dict()
     fine = fine_width(state)
+    averaged = ("" if cfg.average_with is None
+                else f", averaged with {cfg.average_with.name} ({cfg.average_weight:g})")
     desc = (f"HeatmapNet widths {architecture(state)[0]}"
             f"{f', fine {fine}' if fine else ''}, {num_parameters(net)} params; "
             f"{cfg.n_images} renders seed {cfg.seed}"
-            f"{', labels ' + str(cfg.labels) if cfg.labels else ''}; {len(history)} epochs"
-            f"{' from ' + Path(init).name if init is not None else ''}")
+            f"{', labels ' + str(cfg.labels) if cfg.labels else ''}"
+            f"{', boxes ' + ' '.join(p.name for p in cfg.boxes) if cfg.boxes else ''}"
+            f"{', negatives ' + ' '.join(p.name for p in cfg.negatives) if cfg.negatives else ''}"
+            f"; {len(history)} epochs"
+            f"{' from ' + Path(init).name if init is not None else ''}"
+            f"{averaged}")
     info = ModelInfo(input_width=MODEL_WIDTH * scale, input_height=MODEL_HEIGHT * scale,
                      stride=STRIDE * scale, output_scale=scale,
                      sigma_px=TARGET_SIGMA_PX * scale, threshold=threshold,
