@@ -60,8 +60,12 @@ turbine (:func:`turbinefit.eval.regions.could_be_evidence` at the fit's default
 correspondence threshold, 0.3: an upper bound of the evidence share the verdict of a
 flight of such photos would see; below 0.2 it is ``failed``, below 0.5 ``doubtful``),
 the mean of the line channels' per-pixel maximum, the photos with any channel above the
-model's threshold and the point peaks per photo. ``--untrained DIR`` measures a folder
-no net is trained on (thermal photos) the same way, every photo of it.
+model's threshold and the point peaks per photo; and a flight of them: up to 40 of the
+photos, in name order, as the photos of a simulated 40-keyframe flight (seed 3, its
+turbine.yaml and GPS/IMU poses), fitted from the images as ``turbinefit fit
+--from-images`` does: its verdict and the share of keyframes with evidence (a turbine-free
+flight must not be ``ok``). ``--untrained DIR`` measures a folder no net is trained on
+(thermal photos) the same way, every photo of it.
 """
 
 from __future__ import annotations
@@ -69,9 +73,11 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from common import DATA, HERE, RESULTS, write_json
@@ -174,7 +180,8 @@ def on_turbine(maps: np.ndarray, row: list[str], photo_size: tuple[int, int],
     return line_mass_inside(maps, region), int((~region[pk[:, 1], pk[:, 0]]).sum())
 
 
-def negatives(pool: DetectorPool, folder: Path, split: str) -> dict[str, float]:
+def negatives(pool: DetectorPool, folder: Path, split: str, model: Path | None
+              ) -> dict[str, Any]:
     """Figures of the turbine-free photos of ``folder`` (its ``split`` part), printed."""
     from turbinefit.io.images import list_images
 
@@ -194,10 +201,41 @@ def negatives(pool: DetectorPool, folder: Path, split: str) -> dict[str, float]:
     out = {"photos": len(photos), "could_be_evidence": float(np.mean(ev)),
            "line_mean": float(np.mean(line)), "found": float(np.mean(found)),
            "peaks_per_photo": float(np.mean(peaks))}
+    out.update(negative_flight(photos[:40], model))
     print(f"negatives {folder} ({split}, {len(photos)} photos): could be evidence "
           f"{out['could_be_evidence']:.3f}, line mean {out['line_mean']:.4f}, found "
-          f"{out['found']:.3f}, point peaks per photo {out['peaks_per_photo']:.2f}")
+          f"{out['found']:.3f}, point peaks per photo {out['peaks_per_photo']:.2f}; a flight "
+          f"of {out['flight_photos']}: {out['flight_verdict']}, evidence on "
+          f"{out['flight_evidence_share']:.0%} of keyframes")
     return out
+
+
+def negative_flight(photos: list[Path], model: Path | None) -> dict[str, Any]:
+    """The verdict of ``fit --from-images`` on a simulated flight whose photos are
+    ``photos`` (resized to its camera): a turbine-free flight (module docstring)."""
+    from PIL import Image
+
+    from turbinefit.cli import main as turbinefit
+    from turbinefit.io.images import list_images
+    from turbinefit.jobs.fit import fit_folder
+
+    with tempfile.TemporaryDirectory() as tmp:
+        flight = Path(tmp) / "flight"
+        if turbinefit(["simulate", str(flight), "--keyframes", str(len(photos)), "--seed",
+                       "3", "--images", "--quiet"]) != 0:
+            sys.exit("simulate failed")
+        shutil.rmtree(flight / "heatmaps", ignore_errors=True)
+        frames = sorted(list_images([flight / "images"]),
+                        key=lambda p: float(p.stem))
+        size = Image.open(frames[0]).size
+        for src, dst in zip(photos, frames, strict=True):
+            Image.open(src).convert("RGB").resize(size).save(dst)
+        rep = fit_folder(flight, Path(tmp) / "fit", from_images=True, model=model,
+                         plots=False)
+    sig = rep.result.signals
+    return {"flight_photos": len(photos), "flight_verdict": rep.result.verdict,
+            "flight_evidence_share": None if sig is None else float(sig.evidence_share),
+            "flight_reasons": list(rep.result.reasons)}
 
 
 def per_view(views_csv: Path, rows: list[list[str]], inside: dict[str, float],
@@ -329,9 +367,11 @@ def main() -> None:
     if args.views.is_file():
         result["views"] = per_view(args.views, rows, inside, tower_share, turbine, outside)
     if args.negatives:
-        result["negatives"] = {str(d): negatives(pool, d, args.split) for d in args.negatives}
+        result["negatives"] = {str(d): negatives(pool, d, args.split, args.model)
+                              for d in args.negatives}
     if args.untrained:
-        result["untrained"] = {str(d): negatives(pool, d, "all") for d in args.untrained}
+        result["untrained"] = {str(d): negatives(pool, d, "all", args.model)
+                              for d in args.untrained}
     out = args.out or RESULTS / default_name(args.model, args.input_scale)
     write_json(out, result)
     print(f"wrote {out}; worst photos: {DATA / 'real_worst.png'}")

@@ -134,7 +134,7 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
     t.add_argument("--tip-threshold", type=option(named(FRACTION, "tip threshold")),
                    default=None, metavar="T",
                    help="the blade tips' threshold (default: the best F1 on the validation "
-                   "renders)")
+                   "renders; the tip shift is measured there either way)")
     t.add_argument("--init", type=Path, default=None,
                    help="weights.npz to start from (default with --labels, --boxes or "
                    "--negatives: the shipped model)")
