@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import interrupt_within
-from turbinefit.heatmaps import HeatmapValueError, NonFiniteHeatmapError
+from turbinefit.heatmaps import HeatmapStack, HeatmapValueError, NonFiniteHeatmapError
 
 FloatArray = NDArray[np.float64]
 
@@ -124,7 +124,7 @@ def first_out_of_range(maps: NDArray[np.uint64], half: bool, count: int, lo: flo
 
 class NativeMaps(NamedTuple):
     """How the kernels reach a stack's heat-maps
-    (:meth:`turbinefit.heatmaps.HeatmapStack.native_maps`): per keyframe, the address of
+    (:func:`native_maps`): per keyframe, the address of
     its (7, H, W) array in memory or, with ``files`` (a :class:`FileMaps` handle), its index
     among the ``n_files`` files; float16 if ``half``, else float32."""
 
@@ -132,6 +132,18 @@ class NativeMaps(NamedTuple):
     half: bool
     files: int | None = None
     n_files: int = 0
+
+
+def native_maps(stack: HeatmapStack) -> NativeMaps | None:
+    """How the kernels reach ``stack``'s maps: each keyframe's address
+    (:meth:`~turbinefit.heatmaps.HeatmapStack.pointers`) or, from files, its index among
+    them with their handle; None if they cannot (the numpy implementation then reads
+    them)."""
+    files, index = stack.files, stack.file_index()
+    if files is not None and index is not None:
+        return NativeMaps(index, stack.half, files.handle, len(files))
+    pointers = stack.pointers()
+    return None if pointers is None else NativeMaps(pointers, stack.half)
 
 
 class FileMaps:
@@ -290,7 +302,7 @@ def image_terms(
     Points are ``(1 - f) A + f B`` with ``f = frac`` (N, M) (None: f = 0), their theta
     Jacobians ``(1 - f) JA + f JB`` (M, 3, 7). Adds ``J^T H J`` and ``J^T g`` into ``JtHJ``
     (N, 13, 13) and ``g`` (N, 13) in place. ``maps``: the stack's
-    :meth:`~turbinefit.heatmaps.HeatmapStack.native_maps`. Returns the per-keyframe cost
+    :func:`native_maps`. Returns the per-keyframe cost
     (N,) and the points in view (N,); raises NonFiniteHeatmapError on a NaN or inf
     heat-map value."""
     assert _LIB is not None

@@ -159,7 +159,7 @@ def find_point_correspondences(
     H, W = heatmaps.height, heatmaps.width
     R = max(1, round(radius))
     s = max(1, int(step))
-    maps = heatmaps.native_maps() if _native.available() else None
+    maps = _native.native_maps(heatmaps) if _native.available() else None
     if maps is not None:
         return _native.point_search(maps, W, H, keyframes, channels, uv,
                                     usable, R, _disc_offsets(R, 2 * s), _square5(s), s,
@@ -229,7 +229,7 @@ def find_line_correspondences(
     H, W = heatmaps.height, heatmaps.width
     st = float(step)
     L = max(1, round(half_length / st))
-    maps = heatmaps.native_maps() if _native.available() else None
+    maps = _native.native_maps(heatmaps) if _native.available() else None
     if maps is not None:
         return _native.line_search(maps, W, H, keyframes, channels, uv, normal,
                                    usable, L, st, threshold)

@@ -13,17 +13,13 @@ float16 (half the memory; the compiled kernels read either, :attr:`HeatmapStack.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.errors import TurbinefitError
 from turbinefit.heatmaps.channels import NUM_CHANNELS
-
-if TYPE_CHECKING:
-    from turbinefit._native import NativeMaps
-
 
 #: The coarse grid of :meth:`HeatmapStack.coarse_grid`: this many rows of each channel,
 #: evenly spaced from the first to the last, ...
@@ -155,18 +151,9 @@ class HeatmapStack:
         of that one storage. Valid while this stack lives."""
         return self._pointers
 
-    def native_maps(self) -> NativeMaps | None:
-        """How the compiled kernels reach these maps (:class:`turbinefit._native.NativeMaps`):
-        each keyframe's address (:meth:`pointers`) or, from files, its index among them with
-        their handle; None if they cannot (the numpy implementation then reads them)."""
-        from turbinefit._native import NativeMaps
-
-        if self._files is not None:
-            assert self._index is not None
-            return NativeMaps(self._index, self.half, self._files.handle, len(self._files))
-        if self._pointers is None:
-            return None
-        return NativeMaps(self._pointers, self.half)
+    def file_index(self) -> NDArray[np.uint64] | None:
+        """Each keyframe's index among :attr:`files` (a stack of files), else None."""
+        return self._index if self._files is not None else None
 
     @property
     def files(self) -> KeyframeFiles | None:

@@ -538,7 +538,7 @@ class FitProblem:
             return a if a is None or sel is None else a[sel]
 
         n_res = 0
-        maps = self.data.heatmaps.native_maps() if _native.available() else None
+        maps = _native.native_maps(self.data.heatmaps) if _native.available() else None
         for name, kind, smp, ch, lam, tgt, fnd, nrm in blocks:
             if kind == "none" or lam == 0.0:
                 continue
