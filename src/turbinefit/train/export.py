@@ -87,11 +87,9 @@ def load_npz(path: Path, input_scale: int | None = None,
     return net
 
 
-def average_weights(net: HeatmapNet, path: Path, weight: float) -> None:
-    """Replace ``net``'s weights by ``weight`` times them plus ``1 - weight`` times those of
-    the ``weights.npz`` at ``path`` (a "model soup": a net fine-tuned from another, averaged
-    with it, often keeps what each does best). Both must be the same architecture; integer
-    buffers (batch norm's counters) are ``net``'s.
+def averaging_partner(path: Path, net: HeatmapNet) -> dict[str, torch.Tensor]:
+    """The weights of the ``weights.npz`` at ``path``, to average ``net``'s with
+    (:func:`average_weights`), checked to be of ``net``'s architecture.
 
     Raises:
         InputError: ``path`` unreadable, or not the same architecture.
@@ -101,8 +99,16 @@ def average_weights(net: HeatmapNet, path: Path, weight: float) -> None:
     if other.keys() != mine.keys() or any(other[k].shape != mine[k].shape for k in mine):
         raise InputError("not the weights of a net of the same architecture as the one "
                          "trained", path=path)
+    return other
+
+
+def average_weights(net: HeatmapNet, other: dict[str, torch.Tensor], weight: float) -> None:
+    """Replace ``net``'s weights by ``weight`` times them plus ``1 - weight`` times
+    ``other`` (:func:`averaging_partner`; a "model soup": a net fine-tuned from another,
+    averaged with it, often keeps what each does best). Integer buffers (batch norm's
+    counters) are ``net``'s."""
     net.load_state_dict({k: (weight * v.double() + (1.0 - weight) * other[k].double()).to(v.dtype)
-                         if v.is_floating_point() else v for k, v in mine.items()})
+                         if v.is_floating_point() else v for k, v in net.state_dict().items()})
 
 
 def save_npz(net: torch.nn.Module, path: Path) -> None:

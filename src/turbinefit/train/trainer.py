@@ -44,7 +44,6 @@ cores and may be raised on an otherwise idle machine.
 
 from __future__ import annotations
 
-import copy
 import csv
 import io
 import math
@@ -78,7 +77,14 @@ from turbinefit.sim.dataset import (
     check_dataset_folder,
     read_spec,
 )
-from turbinefit.train.export import OPSET, average_weights, export_onnx, load_npz, save_npz
+from turbinefit.train.export import (
+    OPSET,
+    average_weights,
+    averaging_partner,
+    export_onnx,
+    load_npz,
+    save_npz,
+)
 from turbinefit.train.net import (
     STRIDE,
     WIDTHS,
@@ -516,8 +522,8 @@ def train(cfg: TrainConfig, progress: bool = True,
                            fine=cfg.fine or 0))
     net = net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     scale = net.input_scale
-    if cfg.average_with is not None:  # the same architecture, or refused now, not at the end
-        average_weights(copy.deepcopy(net), cfg.average_with, cfg.average_weight)
+    # the same architecture, or refused now, not at the end
+    partner = None if cfg.average_with is None else averaging_partner(cfg.average_with, net)
     labelled: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
     if cfg.labels is not None:
         labelled = _labelled_arrays(cfg, scale)
@@ -654,8 +660,8 @@ def train(cfg: TrainConfig, progress: bool = True,
         _write_history(out / "history.csv", history)
 
     # Thresholds of the final weights (again if a finished run is run again: re-export).
-    if cfg.average_with is not None:
-        average_weights(net, cfg.average_with, cfg.average_weight)
+    if partner is not None:
+        average_weights(net, partner, cfg.average_weight)
         log(f"weights averaged with {cfg.average_with} ({cfg.average_weight:g} of the "
             "trained ones)")
     threshold = tip_threshold = 0.3 if cfg.tip_threshold is None else cfg.tip_threshold
