@@ -97,6 +97,7 @@ from turbinefit.eval.regions import (
 from turbinefit.heatmaps.channels import CHANNEL_NAMES
 from turbinefit.io.images import read_image
 from turbinefit.jobs.evaluate import evaluate_regions
+from turbinefit.solver.config import FitConfig
 
 CLASSES = ("turbine", "blade")
 #: What each blade photo shows (see the module docstring).
@@ -110,8 +111,8 @@ TOWER_LINE = CHANNEL_NAMES.index("line_tower")
 BOTTOM_PX = 40
 #: The held-out part must hold at least this share of each class.
 MIN_HELD_OUT = 0.3
-#: The fit's default correspondence threshold (FitConfig.corr_threshold).
-CORR_THRESHOLD = 0.3
+#: The fit's default correspondence threshold.
+CORR_THRESHOLD = FitConfig().corr_threshold
 
 
 def renders_of_each_shape(n: int, model: Path | None) -> None:
@@ -202,11 +203,12 @@ def negatives(pool: DetectorPool, folder: Path, split: str, model: Path | None
            "line_mean": float(np.mean(line)), "found": float(np.mean(found)),
            "peaks_per_photo": float(np.mean(peaks))}
     out.update(negative_flight(photos[:40], model))
+    share = out["flight_evidence_share"]
     print(f"negatives {folder} ({split}, {len(photos)} photos): could be evidence "
           f"{out['could_be_evidence']:.3f}, line mean {out['line_mean']:.4f}, found "
           f"{out['found']:.3f}, point peaks per photo {out['peaks_per_photo']:.2f}; a flight "
           f"of {out['flight_photos']}: {out['flight_verdict']}, evidence on "
-          f"{out['flight_evidence_share']:.0%} of keyframes")
+          f"{'?' if share is None else f'{share:.0%}'} of keyframes")
     return out
 
 
