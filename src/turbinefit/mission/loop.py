@@ -55,7 +55,6 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,33 +63,35 @@ from turbinefit.flight import Flight
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3, quat_exp, quat_multiply, world_T_cam_from_angles
 from turbinefit.heatmaps import HeatmapStack
-from turbinefit.inspection.clearance import ROTOR, path_clearance, solid_samples
 from turbinefit.inspection.defects import Defect
 from turbinefit.inspection.plan import (
     Plan,
     PlanError,
-    PlanOptions,
     Waypoint,
-    check_margin,
     plan_path,
-    tower_clearance,
 )
 from turbinefit.inspection.surface import SurfaceShape, TurbineSurface
+from turbinefit.mission.config import InitialError, MissionConfig
+from turbinefit.mission.replan import (
+    moved,
+    plan_options,
+    plausible,
+    position_sigma,
+    replan,
+    structure_sigma,
+)
 from turbinefit.sim.defects import draw_defects
 from turbinefit.sim.gnss import GnssReceiver, gnss_model
 from turbinefit.sim.noise import OdometrySensor
 from turbinefit.sim.photos import DefectBox, FlightPhotos
 from turbinefit.sim.render import RenderConfig, render_heatmaps
 from turbinefit.sim.scenario import DEFAULT_HEATMAP_NOISE
-from turbinefit.sim.turbines import PRESETS as TURBINE_PRESETS
 from turbinefit.sim.turbines import preset_turbine
-from turbinefit.solver.config import PHOTO_FIT_DEFAULTS, FitConfig
+from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import fit
 from turbinefit.solver.init import NotDetermined, TurbinePrior, initial_turbine
 from turbinefit.solver.tracker import (
-    DEFAULT_THETA_SIGMA,
     Tracker,
-    TrackerConfig,
     TrackEstimate,
 )
 from turbinefit.turbine.model import PAPER_GEOMETRY, TurbineParams, model_points
@@ -98,138 +99,8 @@ from turbinefit.turbine.solid import ROOT_TWIST
 
 FloatArray = NDArray[np.float64]
 
-#: The inspection camera of the benchmarks: 20 MP, a 50 mm lens on a full-frame sensor
-#: (a DJI Zenmuse P1-like camera; 1.36 mm/px at 10 m).
-MISSION_CAMERA = PinholeCamera(5280, 3956, 7350.0, 7350.0, 2639.5, 1977.5)
-#: Kinds of heat-maps a mission reads (module docstring).
-MAP_KINDS = ("photos", "ideal")
-#: Where the pose graph's relative motions come from (module docstring).
-ODOMETRY_KINDS = ("vio", "gnss")
-#: Width [px] of the heat-maps (the shipped CNN's output for a 320 px photo).
-MAP_WIDTH = 160
 #: Streams of the mission's random numbers (spawned from the seed, in this order).
 _STREAMS = ("turbine", "initial", "defects", "gnss", "maps", "odometry")
-
-
-@dataclass(frozen=True)
-class InitialError:
-    """How far the typed-in turbine is from the truth: each parameter off by a uniform
-    draw within +- these (sizes as a fraction of the true ones)."""
-
-    heading_deg: float = 5.0
-    blade_rotation_deg: float = 5.0
-    base_m: float = 3.0
-    size: float = 0.05
-
-    def draw(self, truth: TurbineParams, rng: np.random.Generator) -> TurbineParams:
-        """The typed-in turbine for ``truth``."""
-        u = rng.uniform(-1.0, 1.0, size=7)
-        return TurbineParams(
-            truth.base_x + self.base_m * u[0], truth.base_y + self.base_m * u[1],
-            truth.tower_height * (1.0 + self.size * u[2]),
-            truth.heading + math.radians(self.heading_deg) * u[3],
-            truth.nacelle_length * (1.0 + self.size * u[4]),
-            truth.blade_rotation + math.radians(self.blade_rotation_deg) * u[5],
-            truth.blade_length * (1.0 + self.size * u[6]))
-
-
-@dataclass(frozen=True)
-class MissionConfig:
-    """Everything that defines a simulated mission (module docstring).
-
-    Attributes:
-        turbine: the turbine type (:data:`turbinefit.sim.turbines.PRESETS`).
-        seed: random seed; the same configuration and seed give the same mission.
-        standoff: the plan's stand-off [m].
-        gsd_mm: the resolution each side must be seen at [mm/px].
-        gnss: ``standard`` or ``rtk`` (:data:`turbinefit.sim.gnss.GNSS_MODELS`).
-        camera: the inspection camera (coverage and resolution at its full size).
-        photo_width: width [px] the photos are rendered at (the camera scaled).
-        closed_loop: correct the navigation and replan from the tracker (else: fly the
-            first plan on GNSS alone).
-        defects: how many known defects are painted on the blades.
-        maps: ``photos`` (the CNN on the rendered photos) or ``ideal`` (the simulator's).
-        orbit_photos: photos of the approach orbit.
-        initial_error: how far the typed-in turbine is from the truth.
-        max_gimbal_up_deg: the gimbal's largest upward pitch [deg].
-        odometry: ``vio``: the drone's visual-inertial odometry gives the relative motions
-            between photos (body frame, :class:`~turbinefit.sim.noise.OdometrySensor`) and
-            the GNSS fixes anchor the positions (``gauge="gps"``, the model's sigma);
-            ``gnss``: the recorded GNSS poses give both.
-        replan_m: replan when the turbine estimate's model points moved this far [m].
-        replan_every: and at most once every this many photos.
-        overlap: the share of a photo's footprint its neighbours along the part share.
-        safety_sigmas: in closed loop, the plan keeps the stand-off plus this many times the
-            tracker's standard deviation of the drone's position (its worst direction), as
-            far as the camera still reaches the GSD, and widens the overlap by as much;
-            and it keeps the tower clearance plus as many times the standard deviation of
-            where the tower and the nacelle are (the turbine estimate's base and nacelle
-            length with the drone's position; photos of blades alone leave them
-            uncertain), that standard deviation never taken below
-            ``structure_sigma_min`` [m] (the tracker's covariance of them is overconfident)
-            (0: the stand-off, the overlap and the clearance alone).
-        max_photos: end the mission after this many inspection photos (a short mission).
-        speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
-        tracker: the tracker's options (its cost: the defaults for photos).
-    """
-
-    turbine: str = "nrel5mw"
-    seed: int = 0
-    standoff: float = 10.0
-    gsd_mm: float = 2.0
-    gnss: str = "standard"
-    camera: PinholeCamera = MISSION_CAMERA
-    photo_width: int = 320
-    closed_loop: bool = True
-    defects: int = 12
-    maps: Literal["photos", "ideal"] = "photos"
-    orbit_photos: int = 24
-    initial_error: InitialError = field(default_factory=InitialError)
-    max_gimbal_up_deg: float = 90.0
-    odometry: Literal["vio", "gnss"] = "vio"
-    replan_m: float = 0.5
-    replan_every: int = 3
-    overlap: float = 0.3
-    safety_sigmas: float = 2.0
-    structure_sigma_min: float = 1.0
-    max_photos: int = 100_000
-    speed_m_s: float = 4.0
-    photo_s: float = 2.0
-    tracker: TrackerConfig = field(default_factory=lambda: TrackerConfig(
-        fit=replace(FitConfig(), **PHOTO_FIT_DEFAULTS)))
-
-    def __post_init__(self) -> None:
-        if self.turbine not in TURBINE_PRESETS:
-            raise ValueError(f"unknown turbine type {self.turbine!r}; choose from "
-                             f"{', '.join(TURBINE_PRESETS)}")
-        if self.maps not in MAP_KINDS:
-            raise ValueError(f"maps must be one of {', '.join(MAP_KINDS)}, got {self.maps!r}")
-        if self.odometry not in ODOMETRY_KINDS:
-            raise ValueError(f"odometry must be one of {', '.join(ODOMETRY_KINDS)}, "
-                             f"got {self.odometry!r}")
-        gnss_model(self.gnss)
-        if self.orbit_photos < 8:
-            raise ValueError(f"orbit_photos must be at least 8, got {self.orbit_photos}")
-        if not 32 <= self.photo_width <= self.camera.width:
-            raise ValueError(f"photo_width must be between 32 and the camera's width "
-                             f"({self.camera.width}), got {self.photo_width}")
-
-    def fit_config(self) -> FitConfig:
-        """The cost and options of the tracker and the final fit: the tracker's, anchored
-        to the GNSS fixes (``gauge="gps"`` at the GNSS model's horizontal sigma: a compass
-        yaw bias is then estimated, not held fixed at the first keyframe's)."""
-        return replace(self.tracker.fit, gauge="gps",
-                       gps_sigma=max(float(gnss_model(self.gnss).horizontal_m), 0.01))
-
-    def photo_camera(self) -> PinholeCamera:
-        """The camera the photos are rendered with (:attr:`camera` scaled)."""
-        h = max(24, round(self.camera.height * self.photo_width / self.camera.width))
-        return self.camera.scaled_to(self.photo_width, h)
-
-    def map_camera(self) -> PinholeCamera:
-        """The heat-maps' camera (:attr:`camera` scaled to :data:`MAP_WIDTH` wide)."""
-        h = max(24, round(self.camera.height * MAP_WIDTH / self.camera.width))
-        return self.camera.scaled_to(MAP_WIDTH, h)
 
 
 @dataclass
@@ -389,16 +260,6 @@ def orbit_poses(turbine: TurbineParams, camera: PinholeCamera, n: int) -> SE3:
     return world_T_cam_from_angles(pos, yaw, np.zeros(n), 0.0)
 
 
-def _moved(a: TurbineParams, b: TurbineParams) -> float:
-    """The largest distance between the model points of two turbines [m] (tips matched
-    modulo the blades' symmetry)."""
-    pa, _ = model_points(a.to_vector())
-    pb, _ = model_points(b.to_vector())
-    d = float(np.max(np.linalg.norm(pa[:3] - pb[:3], axis=1)))
-    tips = np.linalg.norm(pa[3:, None] - pb[None, 3:], axis=-1)
-    return max(d, float(tips.min(axis=1).max()))
-
-
 class _Maps:
     """The heat-maps of a photo: the CNN's (on the rendered photo) or the simulator's."""
 
@@ -509,9 +370,9 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
 
     # -- the plan, then waypoint by waypoint
-    options = (_options(cfg, _position_sigma(tracker, last_est),
-                        _structure_sigma(tracker, last_est, cfg.structure_sigma_min)) if cfg.closed_loop
-               else _options(cfg, 0.0, 0.0))
+    options = (plan_options(cfg, position_sigma(tracker, last_est),
+                        structure_sigma(tracker, last_est, cfg.structure_sigma_min)) if cfg.closed_loop
+               else plan_options(cfg, 0.0, 0.0))
     t0 = time.perf_counter()
     planned_for = tracker.turbine
     plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
@@ -541,9 +402,9 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
             progress("inspection", len(done), total)
         if not cfg.closed_loop or since < cfg.replan_every:
             continue
-        wanted = _options(cfg, _position_sigma(tracker, est),
-                          _structure_sigma(tracker, est, cfg.structure_sigma_min))
-        if (_moved(planned_for, tracker.turbine) < cfg.replan_m
+        wanted = plan_options(cfg, position_sigma(tracker, est),
+                          structure_sigma(tracker, est, cfg.structure_sigma_min))
+        if (moved(planned_for, tracker.turbine) < cfg.replan_m
                 and abs(wanted.standoff - options.standoff) < cfg.replan_m
                 and (wanted.tower_clearance or 0.0) <= (options.tower_clearance or 0.0)
                 and abs(wanted.overlap - options.overlap) < 0.1):
@@ -555,7 +416,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         t0 = time.perf_counter()
         since = 0
         try:
-            again = _replan(TurbineSurface(tracker.turbine), cfg, wanted, done,
+            again = replan(TurbineSurface(tracker.turbine), cfg, wanted, done,
                             nav.believed(kf.recorded))
         except PlanError as e:
             failures += 1
@@ -579,124 +440,11 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
                    plan_turbines, rejected)
 
 
-def _position_sigma(tracker: Tracker, est: TrackEstimate | None = None) -> float:
-    """The largest standard deviation [m] of the latest pose's position, in its worst
-    direction (0 if unknown)."""
-    cov = None if est is None else est.pose_covariance
-    if cov is None:
-        return 0.0
-    w = np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))
-    return float(math.sqrt(max(float(w[-1]), 0.0)))
-
-
-def _structure_sigma(tracker: Tracker, est: TrackEstimate | None, least: float) -> float:
-    """The standard deviation [m] of where the tower and the nacelle are, apart from the
-    drone's own position: the turbine estimate's base (its worst horizontal direction)
-    and nacelle length, at least ``least``. Photos of the blades fix the hub well but
-    hardly where the tower stands behind it (a base further downwind and a shorter nacelle
-    put the hub at the same place), and the tracker's covariance of them is overconfident:
-    0.2 m where the estimate was 1.5 m off (RTK, seed 6; ``benchmarks/bench_mission.py``).
-    Without a covariance (singular information), the tracker's start-up prior's."""
-    cov = None if est is None else est.theta_covariance
-    if cov is None or not np.all(np.isfinite(cov)):
-        sig = tracker.config.theta_sigma or DEFAULT_THETA_SIGMA
-        return max(least, math.hypot(max(sig[0], sig[1]), sig[4]))
-    base = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))[-1]
-    return max(least, math.sqrt(max(float(base), 0.0) + max(float(cov[4, 4]), 0.0)))
-
-
-def _options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> PlanOptions:
-    """The plan's options for a pose known to a standard deviation ``sigma`` [m], and a
-    tower and nacelle known to ``structure_sigma`` [m] apart from it: the stand-off asked
-    for, widened by ``safety_sigmas`` times ``sigma`` (at most half the stand-off, and no
-    further than the camera still reaches the GSD from), the photos' overlap along the
-    part widened by as much (at most 0.7), so that a photo taken that far off its station
-    still meets its neighbours, and the tower clearance widened by ``safety_sigmas`` times
-    both standard deviations together (at most the stand-off)."""
-    f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
-    reach = cfg.gsd_mm * f / 1000.0 - 0.5  # the planner flies its check's margin further
-    widen = min(cfg.safety_sigmas * sigma, 0.5 * cfg.standoff)
-    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach))
-    foot = min(cfg.camera.width, cfg.camera.height) * standoff / f
-    overlap = min(0.7, cfg.overlap + cfg.safety_sigmas * sigma / foot)
-    base = tower_clearance(PlanOptions(standoff, cfg.gsd_mm))
-    tower = min(standoff, base + cfg.safety_sigmas * math.hypot(sigma, structure_sigma))
-    return PlanOptions(round(standoff, 1), cfg.gsd_mm, overlap=round(overlap, 2),
-                       max_gimbal_up_deg=cfg.max_gimbal_up_deg,
-                       tower_clearance=math.floor(10 * tower) / 10)
-
-
 def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
     """The tracker's update with keyframe ``kf`` (its odometry, and its fix's sigmas with
     RTK)."""
     return tracker.update(kf.timestamp, kf.recorded, kf.heatmaps, odometry=kf.odometry,
                           position_sigma=kf.position_sigma if rtk else None)
-
-
-def _replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
-            done: set[tuple[int, int, float]], here: SE3) -> Plan | None:
-    """The rest of the path planned again from ``surface`` (the current estimate): a
-    station of the new plan is left out if the photos taken (``done``: part, side, span)
-    already cover its share of the side (its span, half a station's spacing either way,
-    within the footprints of those photos along the part), and the path starts at the
-    believed pose ``here``. If the new estimate puts ``here`` within the stand-off, the
-    path starts by backing away along the view until it keeps it (a transit point). None
-    if nothing is left to photograph."""
-    f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
-    foot = min(cfg.camera.width, cfg.camera.height) * options.standoff / f  # along the part
-    step = max((1.0 - options.overlap) * foot, 0.1)
-    taken: dict[tuple[int, int], list[float]] = {}
-    for p, s, x in done:
-        taken.setdefault((p, s), []).append(x)
-
-    def photographed(part: int, side: int, span: float) -> bool:
-        spans = sorted(taken.get((part, side), []))
-        lo, hi = span - 0.5 * step, span + 0.5 * step
-        for x in spans:  # the union of the footprints, swept from below
-            if x - 0.5 * foot > lo:
-                return False
-            lo = max(lo, x + 0.5 * foot)
-            if lo >= hi:
-                return True
-        return False
-
-    samples = solid_samples(surface)
-    start = here.translation
-    need = options.standoff + check_margin(samples) + 0.1
-    backward = -here.rotation_matrix()[:, 2]
-    retreat: list[Waypoint] = []
-    for _ in range(20):
-        dist = path_clearance(start[None], samples).least(ROTOR, legs=False)[0]
-        if dist >= need:
-            break
-        start = start + max(need - dist, 0.25) * backward
-        retreat = [Waypoint(start.copy(), float(np.arctan2(-backward[1], -backward[0])), 0.0)]
-    plan = plan_path(surface, cfg.camera, options, samples, start=start, done=photographed)
-    if not plan.photos:
-        return None
-    if retreat:  # fly here -> retreat point (the plan's start) -> the stations
-        plan.waypoints = [Waypoint(here.translation.copy(), 0.0, 0.0), *plan.waypoints]
-    return plan
-
-
-def plausible(estimate: TurbineParams, typed_in: TurbineParams, error: InitialError,
-              factor: float = 3.0) -> bool:
-    """Whether ``estimate`` lies within ``factor`` times the typed-in turbine's error bounds
-    of it (base, heading, blade rotation modulo a third of a turn, sizes): an estimate
-    beyond them is not trusted (an approach photographed from afar can mistake the rotor's
-    side, or a tracker lose its way) and the typed-in turbine stands."""
-    e, t = estimate.to_vector(), typed_in.to_vector()
-
-    def angle(a: float, b: float, period: float) -> float:
-        return abs((a - b + period / 2) % period - period / 2)
-
-    base = math.hypot(e[0] - t[0], e[1] - t[1])
-    sizes = [abs(e[i] / t[i] - 1.0) for i in (2, 6) if t[i] > 0]
-    return bool(base <= factor * error.base_m * math.sqrt(2.0) + 1.0
-                and angle(e[3], t[3], 2 * math.pi) <= math.radians(factor * error.heading_deg)
-                and angle(e[5], t[5], 2 * math.pi / 3)
-                <= math.radians(factor * error.blade_rotation_deg)
-                and all(s <= factor * error.size + 0.02 for s in sizes))
 
 
 def _initial_turbine(keyframes: list[Keyframe], camera: PinholeCamera,

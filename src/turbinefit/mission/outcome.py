@@ -37,7 +37,8 @@ from turbinefit.inspection.clearance import ROTOR, STRUCTURE, path_clearance, so
 from turbinefit.inspection.coverage import COVERED_PARTS, flight_coverage, side_names
 from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, locate_box
 from turbinefit.io.defects import LocatedDamage
-from turbinefit.mission.loop import Keyframe, Mission, plausible
+from turbinefit.mission.loop import Keyframe, Mission
+from turbinefit.mission.replan import plausible
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.turbine.model import TurbineParams
 
@@ -100,7 +101,7 @@ def locate_defects(kfs: list[Keyframe], poses: SE3, turbine: TurbineParams,
 
 def final_start(mission: Mission) -> tuple[SE3 | None, TurbineParams]:
     """Where the final fit starts: the tracker's final poses and turbine if its turbine is
-    plausible (:func:`~turbinefit.mission.loop.plausible`), else the recorded poses (None)
+    plausible (:func:`~turbinefit.mission.replan.plausible`), else the recorded poses (None)
     and the typed-in turbine."""
     turbine = mission.tracker.turbine
     if plausible(turbine, mission.typed_in, mission.config.initial_error):
