@@ -102,6 +102,8 @@ def test_plan_of_a_georeferenced_flight(fit_dir: Path, sim_flight_dir: Path, cam
     (["--standoff", "99"], r"--standoff.*meets the rotor"),
     (["--standoff", "10", "--gsd", "0.5"], r"--gsd.*1\.40 mm/px at a stand-off of 10 m"),
     (["--standoff", "10", "--tower-clearance", "12"], r"--tower-clearance.*at most the stand-off"),
+    (["--standoff", "10", "--position-margin", "12"],
+     r"--position-margin: the position margin must be between 0 and the stand-off \(10 m\)"),
 ])
 def test_plan_refuses(argv: list[str], words: str, fit_dir: Path, camera_yaml: Path,
                       tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -145,6 +147,10 @@ def test_plan_refuses_a_fit_folder_without(remove: str, words: str, fit_dir: Pat
     (["--standoff", "10", "--gsd", "0"], r"--gsd: resolution 0\.0 mm/px is out of range"),
     (["--standoff", "10", "--overlap", "0.95"], r"--overlap: overlap 0\.95 is out of range"),
     (["--standoff", "10", "--tower-clearance", "1"], r"--tower-clearance: tower clearance 1\.0 m"),
+    (["--standoff", "10", "--blade-pitch", "95"], r"--blade-pitch: blade angle 95\.0 deg is out"),
+    (["--standoff", "10", "--blade-twist", "nan"], r"--blade-twist: .* must be a number"),
+    (["--standoff", "10", "--position-margin", "-1"],
+     r"--position-margin: position margin -1\.0 m is out of range"),
 ])
 def test_plan_refuses_options_out_of_range(argv: list[str], words: str, fit_dir: Path,
                                            tmp_path: Path,

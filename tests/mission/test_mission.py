@@ -100,3 +100,24 @@ def test_the_closed_loop_keeps_the_standoff_where_the_open_loop_does_not() -> No
     opened = mission_outcome(run_mission(MissionConfig(**{**cfg.__dict__, "closed_loop": False})))
     assert closed.clearance_rotor_m >= 0.8 * cfg.standoff
     assert opened.clearance_rotor_m < 0.8 * cfg.standoff
+
+
+def test_a_widened_standoff_the_planner_refuses_falls_back_to_the_one_asked_for(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first plan's stand-off is widened by the tracker's uncertainty; when the planner
+    refuses it (the stand-off then meets the rotor: a 14.2 m one did on a 126 m rotor), the
+    mission is planned at the stand-off asked for, and says why."""
+    from dataclasses import replace
+
+    import turbinefit.mission.loop as loop
+
+    real = loop.plan_options
+
+    def widened(*args: object) -> object:
+        return replace(real(*args), standoff=70.0)  # longer than the blades
+
+    monkeypatch.setattr(loop, "plan_options", widened)
+    mission = run_mission(_config(max_photos=3))
+    assert len(mission.inspection) == 3
+    assert "70 m" in mission.replan_errors[0]
+    assert mission.plans[0].min_rotor_clearance >= 10.0

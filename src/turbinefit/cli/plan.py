@@ -90,6 +90,17 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    help="least distance from the tower and the nacelle [m], at least 2 and at "
                    "most the stand-off (default: a quarter of the stand-off, at least 2 m: the "
                    "suction sides of blades pointing down are seen from beside the tower)")
+    blade_angle = job_option("plan", "BLADE_ANGLE_DEG")
+    p.add_argument("--blade-pitch", type=blade_angle, default=0.0, metavar="DEG",
+                   help="the blades' parked pitch [deg] if known, as coverage's (0: flat in "
+                   "the rotor plane); the edges are photographed along it")
+    p.add_argument("--blade-twist", type=blade_angle, default=0.0, metavar="DEG",
+                   help="blade twist at the root [deg] if known (the pitch's sense)")
+    p.add_argument("--position-margin", type=job_option("plan", "POSITION_MARGIN"),
+                   default=0.0, metavar="M",
+                   help="how far off its waypoints the drone may take a photo [m] (about 2 "
+                   "on GNSS alone, 0.1 with RTK): the views added where the stations leave a "
+                   "side unseen show it from anywhere within it (default 0: flown exactly)")
     p.add_argument("--no-plots", action="store_true", help="skip path.png")
     p.add_argument("--overwrite", action="store_true", help="replace OUT_DIR's outputs")
     p.add_argument("--quiet", action="store_true", help="print nothing")
@@ -107,7 +118,9 @@ def run(args: argparse.Namespace) -> int:
     report = plan_folder(args.fit_dir, args.out, standoff=args.standoff, max_gsd_mm=args.gsd,
                          camera=camera, flight_dir=args.flight, overlap=args.overlap,
                          max_gimbal_up_deg=args.max_gimbal_up,
-                         tower_clearance=args.tower_clearance, platform=args.platform,
+                         tower_clearance=args.tower_clearance,
+                         blade_pitch_deg=args.blade_pitch, blade_twist_deg=args.blade_twist,
+                         position_margin=args.position_margin, platform=args.platform,
                          formats=args.formats, origin=args.origin, speed=args.speed,
                          plots=not args.no_plots, overwrite=args.overwrite)
     if args.quiet:

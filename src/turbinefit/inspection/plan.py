@@ -155,6 +155,12 @@ class PlanOptions:
         min_altitude: lowest camera height above the ground [m].
         tower_clearance: least distance from the tower and the nacelle [m] (None: a quarter
             of the stand-off).
+        position_margin: how far [m] the drone may be from a waypoint, in any direction,
+            when it takes the photo (its navigation's error relative to the turbine: 1.5-3
+            m on GNSS alone, centimetres with RTK). The views added where the stations
+            leave a side unseen must show it from anywhere within this margin, and a side
+            the stations show only from their exact poses gets views added too (0: the
+            waypoints are flown exactly).
     """
 
     standoff: float
@@ -163,6 +169,7 @@ class PlanOptions:
     max_gimbal_up_deg: float = 90.0
     min_altitude: float = 2.0
     tower_clearance: float | None = None
+    position_margin: float = 0.0
 
 
 @dataclass
@@ -302,36 +309,58 @@ class _Filler:
     views aimed at them from the stand-off out to the distance of that resolution, turned
     about the blade's axis (:data:`FILL_TURNS_DEG`) and tilted along it
     (:data:`FILL_TILTS_DEG`), each view keeping the planner's clearances and the gimbal's
-    pitch, its centre showing the side."""
+    pitch, its centre showing the side.
+
+    With a position margin ``margin`` [m], a view shows a sample only if it does from
+    each of seven positions: its own and ``margin`` metres off it either way along the
+    camera's three axes (a drone that flies its waypoints to within the margin). The
+    greedy choice then prefers the views that show most that way, and only where none
+    does falls back to what the view shows from its own position."""
 
     def __init__(self, s: TurbineSurface, camera: PinholeCamera, clear: _Clearance, dp: float,
-                 tp: float, min_alt: float, max_up: float, goal_mm: float) -> None:
+                 tp: float, min_alt: float, max_up: float, goal_mm: float,
+                 margin: float = 0.0) -> None:
         self.s, self.camera, self.clear = s, camera, clear
         self.dp, self.tp, self.min_alt, self.max_up = dp, tp, min_alt, max_up
         self.goal = goal_mm
+        self.margin = margin
         self.depth = goal_mm * math.sqrt(camera.fx * camera.fy) / 1000.0
         self.samples = [part_samples(s, i, FILL_STEP) for i in range(3)]
 
     def _seen(self, position: FloatArray, yaw: FloatArray, pitch: FloatArray, i: int,
-              pts: FloatArray) -> FloatArray:
+              pts: FloatArray, robust: bool = False) -> NDArray[np.bool_]:
         """(k, 4, m) whether each view (k) shows each sample ``pts`` (m, 3) of blade ``i``
-        on each side at the resolution asked for."""
+        on each side at the resolution asked for; ``robust``: from every position within
+        the margin (the class docstring)."""
         R = world_T_cam_from_angles(position, yaw, pitch, 0.0).rotation_matrix()
-        kk, mm, side, _, g = sample_views(self.s, self.camera, R.reshape(-1, 3, 3),
-                                          position.reshape(-1, 3), i, pts)
-        out = np.zeros((len(yaw), 4, len(pts)), dtype=bool)
+        R = R.reshape(-1, 3, 3)
+        position = position.reshape(-1, 3)
+        k = len(position)
+        shifts = [np.zeros(3)]
+        if robust and self.margin > 0.0:
+            shifts += [sign * self.margin * e for e in np.eye(3) for sign in (1.0, -1.0)]
+        # every shifted copy of every view at once: copy j of view v is row j * k + v
+        Rs = np.concatenate([R] * len(shifts))
+        ps = np.concatenate([position + np.einsum("kij,j->ki", R, d) for d in shifts])
+        kk, mm, side, _, g = sample_views(self.s, self.camera, Rs, ps, i, pts)
+        out = np.zeros((len(shifts), k, 4, len(pts)), dtype=bool)
         fine = g <= self.goal
-        out[kk[fine], side[fine], mm[fine]] = True
-        return out
+        out[kk[fine] // k, kk[fine] % k, side[fine], mm[fine]] = True
+        return np.asarray(out.all(axis=0), dtype=bool)
 
-    def covered(self, photos: list[Waypoint], i: int) -> NDArray[np.bool_]:
-        """(4, m) the samples of blade ``i``'s sides ``photos`` show."""
+    def covered(self, photos: list[Waypoint], i: int, robust: bool = False
+                ) -> NDArray[np.bool_]:
+        """(4, m) the samples of blade ``i``'s sides ``photos`` show (``robust``: from
+        anywhere within the margin)."""
         pts = self.samples[i][1]
         if not photos:
             return np.zeros((4, len(pts)), dtype=bool)
         p = np.array([w.position for w in photos])
-        seen = self._seen(p, np.array([w.yaw for w in photos]),
-                          np.array([w.pitch for w in photos]), i, pts)
+        yaw, pitch = np.array([w.yaw for w in photos]), np.array([w.pitch for w in photos])
+        seen = self._seen(p, yaw, pitch, i, pts)
+        if robust and self.margin > 0.0:  # judged again from within the margin: the views
+            some = np.flatnonzero(seen.any(axis=(1, 2)))  # that show any of the blade
+            seen = self._seen(p[some], yaw[some], pitch[some], i, pts, robust=True)
         return np.asarray(seen.any(axis=0), dtype=bool)
 
     def _candidates(self, i: int, side: int, targets: IntArray
@@ -390,16 +419,26 @@ class _Filler:
                 continue
             left = np.flatnonzero(todo)
             gain = self._seen(c, yaw, pitch, i, pts[left])[:, side]  # (k, m)
+            if self.margin > 0.0:  # judged from within the margin: the views that show any
+                sure = np.zeros_like(gain)
+                some = np.flatnonzero(gain.any(axis=1))
+                sure[some] = self._seen(c[some], yaw[some], pitch[some], i, pts[left],
+                                        robust=True)[:, side]
+            else:
+                sure = gain
             while len(added) < FILL_MAX and gain.size:
-                count = gain.sum(axis=1)
-                # the view showing the most, of those the nearest
-                k = int(np.lexsort((dist, -count))[0])
+                count, count_sure = gain.sum(axis=1), sure.sum(axis=1)
+                # the view showing the most from anywhere within the margin, then from its
+                # own position, of those the nearest
+                k = int(np.lexsort((dist, -count, -count_sure))[0])
                 if count[k] == 0:
                     break
                 added.append(Waypoint(c[k].copy(), float(yaw[k]), float(pitch[k]), i, side,
                                       float(span[k])))
-                todo[left[gain[k]]] = False
-                gain[:, gain[k].copy()] = False
+                shown = (sure[k] if count_sure[k] else gain[k]).copy()
+                todo[left[shown]] = False
+                gain[:, shown] = False
+                sure[:, shown] = False
         return added
 
 
@@ -443,6 +482,9 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
             "max_gsd_mm")
     if not 0.0 <= opt.overlap < 0.9:
         raise PlanError(f"overlap must be in [0, 0.9), got {opt.overlap:g}", "overlap")
+    if not (math.isfinite(opt.position_margin) and 0.0 <= opt.position_margin <= d):
+        raise PlanError(f"the position margin must be between 0 and the stand-off ({d:g} m), "
+                        f"got {opt.position_margin:g}", "position_margin")
     s = surface
     if d >= s.b:
         raise PlanError(f"a stand-off of {d:g} m meets the rotor: it is not shorter than the "
@@ -537,15 +579,17 @@ def plan_path(surface: TurbineSurface, camera: PinholeCamera, options: PlanOptio
         plan.skipped[(TOWER, face)] = len(heights) - len(sw)
 
     goal = opt.max_gsd_mm if opt.max_gsd_mm is not None else FILL_GSD_FACTOR * gsd
-    filler = _Filler(s, camera, clear, dp, tp, opt.min_altitude, max_up, goal)
+    filler = _Filler(s, camera, clear, dp, tp, opt.min_altitude, max_up, goal,
+                     opt.position_margin)
+    robust = opt.position_margin > 0.0
     for i, bl in enumerate(s.blades):
         photos = [w for sw in sweeps.values() for w in sw]
-        covered = filler.covered(photos, i)
+        covered = filler.covered(photos, i, robust)
         for side in range(4):
             added = filler.fill(i, side, covered)
             if not added:
                 continue
-            covered |= filler.covered(added, i)
+            covered |= filler.covered(added, i, robust)
             # flown in the order of the camera's position along the blade
             both = sweeps[(i, side)] + added
             along = [float((w.position - bl.root) @ bl.axis) for w in both]

@@ -44,7 +44,7 @@ from turbinefit.inspection.plan import (
     plan_path,
 )
 from turbinefit.inspection.plan import tower_clearance as tower_clearance_of
-from turbinefit.inspection.surface import PARTS, TurbineSurface
+from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface
 from turbinefit.io.atomic import write_text_atomic
 from turbinefit.io.geojson import write_geojson_twin
 from turbinefit.io.georef import Georef, gimbal_from_world_T_cam
@@ -87,6 +87,11 @@ OVERLAP = Quantity("overlap", "", 0.0, 0.9, hi_open=True)
 #: ``--max-gimbal-up`` [deg]: from level (a gimbal that only looks down) to straight up
 #: (and at most the platform's gimbal).
 GIMBAL_UP = Quantity("largest upward gimbal pitch", "deg", 0.0, 90.0)
+#: ``--blade-pitch``, ``--blade-twist`` [deg]: as ``coverage``'s.
+BLADE_ANGLE_DEG = Quantity("blade angle", "deg", -90.0, 90.0)
+#: ``--position-margin`` [m]: how far off its waypoints the drone may take a photo (at
+#: most the stand-off, checked by the planner).
+POSITION_MARGIN = Quantity("position margin", "m", 0.0, MAX_STANDOFF_M)
 #: ``--speed`` [m/s]: the missions' cruise speed (and at most the platform's top speed).
 SPEED = Quantity("speed", "m/s", 0.5, 15.0)
 #: The missions' cruise speed unless given [m/s]: near a structure, slow enough to stop
@@ -95,7 +100,7 @@ DEFAULT_SPEED = 3.0
 #: The option of each of :class:`~turbinefit.inspection.plan.PlanOptions`'s fields.
 OPTION_NAMES = {"standoff": "--standoff", "max_gsd_mm": "--gsd", "overlap": "--overlap",
                 "max_gimbal_up_deg": "--max-gimbal-up", "tower_clearance": "--tower-clearance",
-                "min_altitude": "min_altitude"}
+                "min_altitude": "min_altitude", "position_margin": "--position-margin"}
 
 WAYPOINT_COLUMNS = "index,x,y,z,yaw_deg,gimbal_pitch_deg,photo,part,side,span_m"
 WGS84_COLUMNS = "index,latitude,longitude,altitude,yaw,gimbal_pitch,photo,part,side,span_m"
@@ -200,7 +205,9 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                 camera: PinholeCamera | None = None,
                 flight_dir: str | os.PathLike[str] | None = None, overlap: float = 0.3,
                 max_gimbal_up_deg: float | None = None, tower_clearance: float | None = None,
-                platform: str | None = None, formats: Sequence[str] | None = None,
+                blade_pitch_deg: float = 0.0, blade_twist_deg: float = 0.0,
+                position_margin: float = 0.0, platform: str | None = None,
+                formats: Sequence[str] | None = None,
                 origin: tuple[float, float, float] | None = None,
                 speed: float = DEFAULT_SPEED, plots: bool = True,
                 overwrite: bool = False) -> PlanReport:
@@ -216,6 +223,13 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
     georeferenced flight (``georef.yaml``) or ``origin`` (latitude, longitude, altitude of
     the world frame's origin, the take-off point) for one without.
 
+    ``blade_pitch_deg`` and ``blade_twist_deg`` give the blades' parked pitch and their
+    twist at the root (``coverage``'s terms; 0: flat in the rotor plane): the edges'
+    views are aimed along the sections they give. ``position_margin`` [m]: how far from a
+    waypoint the drone may be when it takes the photo (its navigation's error relative to
+    the turbine); the views added where the stations leave a side unseen show it from
+    anywhere within it (:class:`~turbinefit.inspection.plan.PlanOptions`).
+
     The path is checked before anything is written
     (:func:`~turbinefit.inspection.plan.check_plan`, independent of the planner's
     arithmetic): every waypoint and leg keeps ``standoff`` from the blades and the spinner
@@ -224,7 +238,8 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
 
     Raises:
         InputError: a number out of its range (``STANDOFF``, ``GSD``, ``OVERLAP``,
-            ``GIMBAL_UP``, ``TOWER_CLEARANCE``, ``SPEED``, named by its option), an unknown
+            ``GIMBAL_UP``, ``TOWER_CLEARANCE``, ``SPEED``, ``BLADE_ANGLE_DEG``,
+            ``POSITION_MARGIN``, named by its option), an unknown
             platform or format, a format the platform does not fly, a gimbal pitch or speed
             beyond the platform's, mission files without a georeference, ``origin`` on a
             georeferenced flight, a fit folder without poses or turbine, a stand-off that
@@ -246,6 +261,9 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
                          f"{drone.key} ({drone.name}: up to {up_limit:g} deg)",
                          field="--max-gimbal-up")
     speed = SPEED.check(speed, field="--speed")
+    blade_pitch_deg = BLADE_ANGLE_DEG.check(blade_pitch_deg, field="--blade-pitch")
+    blade_twist_deg = BLADE_ANGLE_DEG.check(blade_twist_deg, field="--blade-twist")
+    position_margin = POSITION_MARGIN.check(position_margin, field="--position-margin")
     if speed > drone.max_speed_m_s:
         raise InputError(f"{speed:g} m/s is faster than platform {drone.key} flies missions "
                          f"({drone.max_speed_m_s:g} m/s)", field="--speed")
@@ -278,11 +296,13 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         camera = PinholeCamera(*drone.camera.intrinsics())
     cam = camera or fit.camera
     assert cam is not None
-    surface = TurbineSurface(fit.turbine, fit.geometry)
+    shape = SurfaceShape(blade_pitch=math.radians(blade_pitch_deg),
+                         blade_twist=math.radians(blade_twist_deg))
+    surface = TurbineSurface(fit.turbine, fit.geometry, shape=shape)
     samples = solid_samples(surface)
     check_margin_m = check_margin(samples)
     options = PlanOptions(standoff, max_gsd_mm, overlap, max_gimbal_up_deg,
-                          tower_clearance=tower_clearance)
+                          tower_clearance=tower_clearance, position_margin=position_margin)
     try:
         plan = plan_path(surface, cam, options, samples)
     except PlanError as exc:
@@ -304,6 +324,8 @@ def plan_folder(fit_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         "waypoints": len(plan.waypoints), "photos": len(plan.photos),
         "length_m": round(plan.length_m, 2),
         "tower_clearance_m": tower_clearance_of(options),
+        "blade_pitch_deg": blade_pitch_deg, "blade_twist_deg": blade_twist_deg,
+        "position_margin_m": position_margin,
         "min_rotor_clearance_m": math.floor(plan.min_rotor_clearance * 1000.0) / 1000.0,
         "min_tower_clearance_m": math.floor(plan.min_tower_clearance * 1000.0) / 1000.0,
         "clearance_check": {

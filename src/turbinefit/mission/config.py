@@ -31,12 +31,15 @@ MAP_WIDTH = 160
 @dataclass(frozen=True)
 class InitialError:
     """How far the typed-in turbine is from the truth: each parameter off by a uniform
-    draw within +- these (sizes as a fraction of the true ones)."""
+    draw within +- these (sizes as a fraction of the true ones), and the blades' parked
+    pitch as the operator knows it (from the turbine's controller) off by up to
+    ``blade_pitch_deg``."""
 
     heading_deg: float = 5.0
     blade_rotation_deg: float = 5.0
     base_m: float = 3.0
     size: float = 0.05
+    blade_pitch_deg: float = 2.0
 
     def draw(self, truth: TurbineParams, rng: np.random.Generator) -> TurbineParams:
         """The typed-in turbine for ``truth``."""
@@ -48,6 +51,10 @@ class InitialError:
             truth.nacelle_length * (1.0 + self.size * u[4]),
             truth.blade_rotation + math.radians(self.blade_rotation_deg) * u[5],
             truth.blade_length * (1.0 + self.size * u[6]))
+
+    def draw_pitch(self, pitch: float, rng: np.random.Generator) -> float:
+        """The blades' pitch [rad] as the operator knows it, for the true ``pitch``."""
+        return pitch + math.radians(self.blade_pitch_deg) * float(rng.uniform(-1.0, 1.0))
 
 
 @dataclass(frozen=True)

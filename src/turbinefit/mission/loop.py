@@ -300,6 +300,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     defects = draw_defects(cfg.defects, truth, streams["defects"]) if cfg.defects else []
     photos = FlightPhotos(cfg.photo_camera(), truth, cfg.seed, defects=defects,
                           surface=True)
+    # the blades as the operator knows them: the blade type's twist, the parked pitch
+    known_shape = SurfaceShape(
+        blade_pitch=-cfg.initial_error.draw_pitch(photos.scene.blade_pitch, streams["initial"]),
+        blade_twist=-ROOT_TWIST)
     maps_of = _Maps(cfg, truth, streams["maps"])
     receiver = GnssReceiver(gnss_model(cfg.gnss), streams["gnss"])
     vio = OdometrySensor(streams["odometry"]) if cfg.odometry == "vio" else None
@@ -375,13 +379,24 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
                else plan_options(cfg, 0.0, 0.0))
     t0 = time.perf_counter()
     planned_for = tracker.turbine
-    plan = plan_path(TurbineSurface(planned_for), cfg.camera, options, start=here)
+    replan_errors: list[str] = []
+    try:
+        plan = plan_path(TurbineSurface(planned_for, shape=known_shape), cfg.camera, options,
+                         start=here)
+    except PlanError as e:  # widened, the stand-off may meet the rotor: plan as asked
+        if options.standoff == cfg.standoff:
+            raise
+        replan_errors.append(str(e))
+        options = replace(options, standoff=cfg.standoff,
+                          tower_clearance=min(options.tower_clearance or 0.0, cfg.standoff),
+                          position_margin=min(options.position_margin, 0.5 * cfg.standoff))
+        plan = plan_path(TurbineSurface(planned_for, shape=known_shape), cfg.camera, options,
+                         start=here)
     timings["plan_s"] += time.perf_counter() - t0
     plans = [plan]
     plan_turbines = [planned_for]
     done: set[tuple[int, int, float]] = set()
     replans = failures = since = rejected = 0
-    replan_errors: list[str] = []
     queue = list(plan.waypoints[1:] if here is not None else plan.waypoints)
     total = len(plan.photos)
     while queue and len(done) < cfg.max_photos:
@@ -416,7 +431,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         t0 = time.perf_counter()
         since = 0
         try:
-            again = replan(TurbineSurface(tracker.turbine), cfg, wanted, done,
+            again = replan(TurbineSurface(tracker.turbine, shape=known_shape), cfg, wanted, done,
                             nav.believed(kf.recorded))
         except PlanError as e:
             failures += 1

@@ -70,21 +70,25 @@ def plan_options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> Pl
     """The plan's options for a pose known to a standard deviation ``sigma`` [m], and a
     tower and nacelle known to ``structure_sigma`` [m] apart from it: the stand-off asked
     for, widened by ``safety_sigmas`` times ``sigma`` (at most half the stand-off, and no
-    further than the camera still reaches the GSD from), the photos' overlap along the
+    further than the camera still reaches the GSD from, as far again nearer: a photo taken
+    that much further off still reaches it), the photos' overlap along the
     part widened by as much (at most 0.7), so that a photo taken that far off its station
     still meets its neighbours, and the tower clearance widened by ``safety_sigmas`` times
-    both standard deviations together (at most the stand-off)."""
+    both standard deviations together (at most the stand-off); the views added where the
+    stations leave a side unseen must show it from anywhere within ``safety_sigmas`` times
+    ``sigma`` of their waypoints (``PlanOptions.position_margin``)."""
     f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
     reach = cfg.gsd_mm * f / 1000.0 - 0.5  # the planner flies its check's margin further
     widen = min(cfg.safety_sigmas * sigma, 0.5 * cfg.standoff)
-    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach))
+    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach - widen))
     foot = min(cfg.camera.width, cfg.camera.height) * standoff / f
     overlap = min(0.7, cfg.overlap + cfg.safety_sigmas * sigma / foot)
     base = tower_clearance(PlanOptions(standoff, cfg.gsd_mm))
     tower = min(standoff, base + cfg.safety_sigmas * math.hypot(sigma, structure_sigma))
     return PlanOptions(round(standoff, 1), cfg.gsd_mm, overlap=round(overlap, 2),
                        max_gimbal_up_deg=cfg.max_gimbal_up_deg,
-                       tower_clearance=math.floor(10 * tower) / 10)
+                       tower_clearance=math.floor(10 * tower) / 10,
+                       position_margin=round(min(cfg.safety_sigmas * sigma, 0.5 * standoff), 2))
 
 
 def replan(surface: TurbineSurface, cfg: MissionConfig, options: PlanOptions,
