@@ -14,19 +14,19 @@ from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import world_T_cam_from_angles
 from turbinefit.inspection.clearance import ROTOR, STRUCTURE, solid_samples
 from turbinefit.inspection.coverage import flight_coverage
+from turbinefit.inspection.distances import PlannerDistances
 from turbinefit.inspection.plan import (
     MIN_LEG,
     MIN_STANDOFF,
     PlanError,
     PlanOptions,
     Waypoint,
-    _Clearance,
-    _densify,
     check_margin,
     check_plan,
     plan_path,
     tower_clearance,
 )
+from turbinefit.inspection.route import densify
 from turbinefit.inspection.surface import TOWER, TurbineSurface
 from turbinefit.sim.turbines import REALISTIC_GEOMETRY, preset_turbine
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams
@@ -76,8 +76,8 @@ def test_photos_see_their_side_from_the_standoff(surface: TurbineSurface, plan) 
 
 
 def test_the_path_keeps_the_standoff_from_the_rotor(surface: TurbineSurface, plan) -> None:
-    pts = _densify(np.array([w.position for w in plan.waypoints]), 0.1)
-    clear = _Clearance(surface)
+    pts = densify(np.array([w.position for w in plan.waypoints]), 0.1)
+    clear = PlannerDistances(surface)
     assert clear.rotor(pts).min() >= 8.0 - 0.01
     assert clear.tower(pts).min() >= 2.0 - 0.01
     assert pts[:, 2].min() >= 2.0 - 1e-9
