@@ -121,3 +121,21 @@ def test_a_widened_standoff_the_planner_refuses_falls_back_to_the_one_asked_for(
     assert len(mission.inspection) == 3
     assert "70 m" in mission.replan_errors[0]
     assert mission.plans[0].min_rotor_clearance >= 10.0
+
+
+def test_the_gnss_fixes_weight_in_the_tracker_and_the_fit() -> None:
+    """By default the GNSS model's horizontal sigma (standard 1.5 m, RTK centimetres) in
+    the tracker and the final fit; ``gps_sigma`` sets both, ``fit_gps_sigma`` the final
+    fit's alone; a weight that is not a positive number is refused."""
+    assert MissionConfig().fit_config().gps_sigma == pytest.approx(1.5)
+    assert MissionConfig().final_fit_config().gps_sigma == pytest.approx(1.5)
+    assert MissionConfig(gnss="rtk").fit_config().gps_sigma < 0.05
+    both = MissionConfig(gps_sigma=5.0)
+    assert both.fit_config().gps_sigma == both.final_fit_config().gps_sigma == 5.0
+    after = MissionConfig(fit_gps_sigma=5.0)
+    assert after.fit_config().gps_sigma == pytest.approx(1.5)
+    assert after.final_fit_config().gps_sigma == 5.0
+    for name in ("gps_sigma", "fit_gps_sigma"):
+        for bad in (0.0, -1.0, math.nan, math.inf):
+            with pytest.raises(ValueError, match=f"{name} must be a positive number"):
+                MissionConfig(**{name: bad})  # type: ignore[arg-type]

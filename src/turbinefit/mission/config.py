@@ -95,6 +95,14 @@ class MissionConfig:
         max_photos: end the mission after this many inspection photos (a short mission).
         speed_m_s: flight speed between waypoints [m/s]; photo_s: time per photo [s].
         tracker: the tracker's options (its cost: the defaults for photos).
+        gps_sigma: the standard deviation [m] the tracker and the final fit give each GNSS
+            fix (None: the GNSS model's horizontal one). The fixes' errors are correlated
+            over minutes, so taken as independent they weigh more than they are worth; a
+            larger value weighs them less (``benchmarks/bench_mission.py --gps-sigma``).
+        fit_gps_sigma: the same for the final fit of the mission's photos alone (None: as
+            :attr:`gps_sigma`). After the flight a batch fit has every photo of every side
+            and can weigh the fixes less than a tracker in flight, whose causal estimate
+            they keep from drifting (``bench_mission.py --fit-gps-sigma``).
     """
 
     turbine: str = "nrel5mw"
@@ -121,6 +129,8 @@ class MissionConfig:
     photo_s: float = 2.0
     tracker: TrackerConfig = field(default_factory=lambda: TrackerConfig(
         fit=replace(FitConfig(), **PHOTO_FIT_DEFAULTS)))
+    gps_sigma: float | None = None
+    fit_gps_sigma: float | None = None
 
     def __post_init__(self) -> None:
         if self.turbine not in TURBINE_PRESETS:
@@ -134,16 +144,26 @@ class MissionConfig:
         gnss_model(self.gnss)
         if self.orbit_photos < 8:
             raise ValueError(f"orbit_photos must be at least 8, got {self.orbit_photos}")
+        for name in ("gps_sigma", "fit_gps_sigma"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v}")
         if not 32 <= self.photo_width <= self.camera.width:
             raise ValueError(f"photo_width must be between 32 and the camera's width "
                              f"({self.camera.width}), got {self.photo_width}")
 
     def fit_config(self) -> FitConfig:
         """The cost and options of the tracker and the final fit: the tracker's, anchored
-        to the GNSS fixes (``gauge="gps"`` at the GNSS model's horizontal sigma: a compass
-        yaw bias is then estimated, not held fixed at the first keyframe's)."""
-        return replace(self.tracker.fit, gauge="gps",
-                       gps_sigma=max(float(gnss_model(self.gnss).horizontal_m), 0.01))
+        to the GNSS fixes (``gauge="gps"`` at :attr:`gps_sigma`, by default the GNSS
+        model's horizontal sigma: a compass yaw bias is then estimated, not held fixed at
+        the first keyframe's)."""
+        sigma = self.gps_sigma or max(float(gnss_model(self.gnss).horizontal_m), 0.01)
+        return replace(self.tracker.fit, gauge="gps", gps_sigma=sigma)
+
+    def final_fit_config(self) -> FitConfig:
+        """The final fit's: :meth:`fit_config` with :attr:`fit_gps_sigma` if given."""
+        cfg = self.fit_config()
+        return cfg if self.fit_gps_sigma is None else replace(cfg, gps_sigma=self.fit_gps_sigma)
 
     def photo_camera(self) -> PinholeCamera:
         """The camera the photos are rendered with (:attr:`camera` scaled)."""

@@ -123,7 +123,7 @@ def final_fit(mission: Mission) -> FitResult:
                     gt_world_T_cam=_poses(kfs, "true"), gt_turbine=mission.truth,
                     position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None)
     poses, turbine = final_start(mission)
-    return fit(flight, mission.config.fit_config(), initial_poses=poses,
+    return fit(flight, mission.config.final_fit_config(), initial_poses=poses,
                initial_turbine=turbine)
 
 
