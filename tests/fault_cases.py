@@ -562,6 +562,16 @@ def _cases() -> list[Case]:
             None, r"--max-gimbal-up", words, usage=True)
     add("plan-gsd-unreachable", cmd(*plan, "--standoff", "10", "--gsd", "0.01"), None,
         r"--gsd", r"mm/px at a stand-off of 10 m")
+    # the blades' shape and the position margin
+    for opt, value, words in (("--blade-pitch", "nan", r"must be a number, got nan"),
+                              ("--blade-twist", "91", r"blade angle 91.0 deg is out of range"),
+                              ("--position-margin", "-1", r"position margin -1.0 m is out"),
+                              ("--position-margin", "inf", r"must be a number|out of range")):
+        add(f"plan-{opt[2:]}-{value}", cmd(*plan, "--standoff", "10", opt, value), None, opt, words,
+            usage=True)
+    add("plan-position-margin-beyond-standoff",
+        cmd(*plan, "--standoff", "10", "--position-margin", "11"), None, r"--position-margin",
+        r"between 0 and the stand-off \(10 m\)")
     # issue 47: mission files, platforms (the flight folder has no georef.yaml)
     origin = ("--standoff", "10", "--origin", "51.45,-2.51,40")
     add("plan-unknown-platform", cmd(*plan, *origin, "--platform", "m31t"), None,
