@@ -51,8 +51,8 @@ class Filler:
     greedy choice then prefers the views that show most that way, and only where none
     does falls back to what the view shows from its own position."""
 
-    def __init__(self, s: TurbineSurface, camera: PinholeCamera, clear: PlannerDistances, dp: float,
-                 tp: float, min_alt: float, max_up: float, goal_mm: float,
+    def __init__(self, s: TurbineSurface, camera: PinholeCamera, clear: PlannerDistances,
+                 dp: float, tp: float, min_alt: float, max_up: float, goal_mm: float,
                  margin: float = 0.0) -> None:
         self.s, self.camera, self.clear = s, camera, clear
         self.dp, self.tp, self.min_alt, self.max_up = dp, tp, min_alt, max_up
@@ -61,26 +61,41 @@ class Filler:
         self.depth = goal_mm * math.sqrt(camera.fx * camera.fy) / 1000.0
         self.samples = [part_samples(s, i, FILL_STEP) for i in range(3)]
 
+    def _shown(self, R: FloatArray, position: FloatArray, i: int, pts: FloatArray
+               ) -> NDArray[np.bool_]:
+        """(k, 4, m) whether each camera (rotations ``R`` (k, 3, 3), positions (k, 3))
+        shows each sample ``pts`` (m, 3) of blade ``i`` on each side at the resolution
+        asked for."""
+        kk, mm, side, _, g = sample_views(self.s, self.camera, R, position, i, pts)
+        out = np.zeros((len(position), 4, len(pts)), dtype=bool)
+        fine = g <= self.goal
+        out[kk[fine], side[fine], mm[fine]] = True
+        return out
+
     def _seen(self, position: FloatArray, yaw: FloatArray, pitch: FloatArray, i: int,
-              pts: FloatArray, robust: bool = False) -> NDArray[np.bool_]:
-        """(k, 4, m) whether each view (k) shows each sample ``pts`` (m, 3) of blade ``i``
-        on each side at the resolution asked for; ``robust``: from every position within
-        the margin (the class docstring)."""
+              pts: FloatArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """(k, 4, m) twice: whether each view (k) shows each sample ``pts`` (m, 3) of blade
+        ``i`` on each side at the resolution asked for from its own position, and from
+        every position within the margin (the class docstring; the same array without a
+        margin). The shifted positions are tried only for the views that show any of the
+        blade from their own."""
         R = world_T_cam_from_angles(position, yaw, pitch, 0.0).rotation_matrix()
         R = R.reshape(-1, 3, 3)
         position = position.reshape(-1, 3)
-        k = len(position)
-        shifts = [np.zeros(3)]
-        if robust and self.margin > 0.0:
-            shifts += [sign * self.margin * e for e in np.eye(3) for sign in (1.0, -1.0)]
-        # every shifted copy of every view at once: copy j of view v is row j * k + v
-        Rs = np.concatenate([R] * len(shifts))
-        ps = np.concatenate([position + np.einsum("kij,j->ki", R, d) for d in shifts])
-        kk, mm, side, _, g = sample_views(self.s, self.camera, Rs, ps, i, pts)
-        out = np.zeros((len(shifts), k, 4, len(pts)), dtype=bool)
-        fine = g <= self.goal
-        out[kk[fine] // k, kk[fine] % k, side[fine], mm[fine]] = True
-        return np.asarray(out.all(axis=0), dtype=bool)
+        seen = self._shown(R, position, i, pts)
+        if self.margin <= 0.0:
+            return seen, seen
+        some = np.flatnonzero(seen.any(axis=(1, 2)))
+        sure = np.zeros_like(seen)
+        if some.size:
+            Rs, k = R[some], len(some)
+            shifts = [sign * self.margin * e for e in np.eye(3) for sign in (1.0, -1.0)]
+            # every shifted copy of every view at once: copy j of view v is row j * k + v
+            moved = self._shown(np.concatenate([Rs] * len(shifts)),
+                                np.concatenate([position[some] + np.einsum("kij,j->ki", Rs, d)
+                                                for d in shifts]), i, pts)
+            sure[some] = seen[some] & moved.reshape(len(shifts), k, 4, len(pts)).all(axis=0)
+        return seen, sure
 
     def covered(self, photos: list[Waypoint], i: int, robust: bool = False
                 ) -> NDArray[np.bool_]:
@@ -89,13 +104,10 @@ class Filler:
         pts = self.samples[i][1]
         if not photos:
             return np.zeros((4, len(pts)), dtype=bool)
-        p = np.array([w.position for w in photos])
-        yaw, pitch = np.array([w.yaw for w in photos]), np.array([w.pitch for w in photos])
-        seen = self._seen(p, yaw, pitch, i, pts)
-        if robust and self.margin > 0.0:  # judged again from within the margin: the views
-            some = np.flatnonzero(seen.any(axis=(1, 2)))  # that show any of the blade
-            seen = self._seen(p[some], yaw[some], pitch[some], i, pts, robust=True)
-        return np.asarray(seen.any(axis=0), dtype=bool)
+        seen, sure = self._seen(np.array([w.position for w in photos]),
+                                np.array([w.yaw for w in photos]),
+                                np.array([w.pitch for w in photos]), i, pts)
+        return np.asarray((sure if robust else seen).any(axis=0), dtype=bool)
 
     def _candidates(self, i: int, side: int, targets: IntArray
                     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -152,14 +164,8 @@ class Filler:
             if not len(c):
                 continue
             left = np.flatnonzero(todo)
-            gain = self._seen(c, yaw, pitch, i, pts[left])[:, side]  # (k, m)
-            if self.margin > 0.0:  # judged from within the margin: the views that show any
-                sure = np.zeros_like(gain)
-                some = np.flatnonzero(gain.any(axis=1))
-                sure[some] = self._seen(c[some], yaw[some], pitch[some], i, pts[left],
-                                        robust=True)[:, side]
-            else:
-                sure = gain
+            seen, held = self._seen(c, yaw, pitch, i, pts[left])
+            gain, sure = seen[:, side], held[:, side]  # (k, m)
             while len(added) < FILL_MAX and gain.size:
                 count, count_sure = gain.sum(axis=1), sure.sum(axis=1)
                 # the view showing the most from anywhere within the margin, then from its
