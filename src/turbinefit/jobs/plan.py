@@ -52,7 +52,7 @@ from turbinefit.io.platforms import DEFAULT_PLATFORM, drone_platform
 from turbinefit.io.quantities import Quantity, check_latlonalt
 from turbinefit.io.tum import write_tum
 from turbinefit.io.turbine_yaml import write_turbine_yaml
-from turbinefit.jobs.coverage import read_fit_output
+from turbinefit.jobs.coverage import BLADE_ANGLE_DEG, read_fit_output
 from turbinefit.jobs.mission_files import (
     FILE_PATTERNS,
     check_flyable,
@@ -87,8 +87,6 @@ OVERLAP = Quantity("overlap", "", 0.0, 0.9, hi_open=True)
 #: ``--max-gimbal-up`` [deg]: from level (a gimbal that only looks down) to straight up
 #: (and at most the platform's gimbal).
 GIMBAL_UP = Quantity("largest upward gimbal pitch", "deg", 0.0, 90.0)
-#: ``--blade-pitch``, ``--blade-twist`` [deg]: as ``coverage``'s.
-BLADE_ANGLE_DEG = Quantity("blade angle", "deg", -90.0, 90.0)
 #: ``--position-margin`` [m]: how far off its waypoints the drone may take a photo (at
 #: most the stand-off, checked by the planner).
 POSITION_MARGIN = Quantity("position margin", "m", 0.0, MAX_STANDOFF_M)
