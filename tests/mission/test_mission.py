@@ -110,11 +110,15 @@ def test_a_widened_standoff_the_planner_refuses_falls_back_to_the_one_asked_for(
     from dataclasses import replace
 
     import turbinefit.mission.loop as loop
+    from turbinefit.inspection.plan import PlanOptions
 
     real = loop.plan_options
 
-    def widened(*args: object) -> object:
-        return replace(real(*args), standoff=70.0)  # longer than the blades
+    def widened(cfg: MissionConfig, sigma: float, structure: float,
+                widen_standoff: bool = True) -> PlanOptions:
+        options = real(cfg, sigma, structure, widen_standoff=widen_standoff)
+        # widened: longer than the blades
+        return replace(options, standoff=70.0) if widen_standoff else options
 
     monkeypatch.setattr(loop, "plan_options", widened)
     mission = run_mission(_config(max_photos=3))

@@ -374,9 +374,10 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         tracker = Tracker(cfg.map_camera(), initial, replace(cfg.tracker, fit=fit_cfg))
 
     # -- the plan, then waypoint by waypoint
-    options = (plan_options(cfg, position_sigma(tracker, last_est),
-                        structure_sigma(tracker, last_est, cfg.structure_sigma_min)) if cfg.closed_loop
-               else plan_options(cfg, 0.0, 0.0))
+    sigmas = ((position_sigma(tracker, last_est),
+               structure_sigma(tracker, last_est, cfg.structure_sigma_min))
+              if cfg.closed_loop else (0.0, 0.0))
+    options = plan_options(cfg, *sigmas)
     t0 = time.perf_counter()
     planned_for = tracker.turbine
     replan_errors: list[str] = []
@@ -387,9 +388,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         if options.standoff == cfg.standoff:
             raise
         replan_errors.append(str(e))
-        options = replace(options, standoff=cfg.standoff,
-                          tower_clearance=min(options.tower_clearance or 0.0, cfg.standoff),
-                          position_margin=min(options.position_margin, 0.5 * cfg.standoff))
+        options = plan_options(cfg, *sigmas, widen_standoff=False)
         plan = plan_path(TurbineSurface(planned_for, shape=known_shape), cfg.camera, options,
                          start=here)
     timings["plan_s"] += time.perf_counter() - t0

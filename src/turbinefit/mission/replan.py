@@ -66,10 +66,12 @@ def structure_sigma(tracker: Tracker, est: TrackEstimate | None, least: float) -
     return max(least, math.sqrt(max(float(base), 0.0) + max(float(cov[4, 4]), 0.0)))
 
 
-def plan_options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> PlanOptions:
+def plan_options(cfg: MissionConfig, sigma: float, structure_sigma: float,
+                 widen_standoff: bool = True) -> PlanOptions:
     """The plan's options for a pose known to a standard deviation ``sigma`` [m], and a
     tower and nacelle known to ``structure_sigma`` [m] apart from it: the stand-off asked
-    for, widened by ``safety_sigmas`` times ``sigma`` (at most half the stand-off, and no
+    for, widened (unless not ``widen_standoff``: the planner refused the widened one) by
+    ``safety_sigmas`` times ``sigma`` (at most half the stand-off, and no
     further than the camera still reaches the GSD from, as far again nearer: a photo taken
     that much further off still reaches it), the photos' overlap along the
     part widened by as much (at most 0.7), so that a photo taken that far off its station
@@ -80,7 +82,8 @@ def plan_options(cfg: MissionConfig, sigma: float, structure_sigma: float) -> Pl
     f = math.sqrt(cfg.camera.fx * cfg.camera.fy)
     reach = cfg.gsd_mm * f / 1000.0 - 0.5  # the planner flies its check's margin further
     widen = min(cfg.safety_sigmas * sigma, 0.5 * cfg.standoff)
-    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach - widen))
+    standoff = max(cfg.standoff, min(cfg.standoff + widen, reach - widen)) \
+        if widen_standoff else cfg.standoff
     foot = min(cfg.camera.width, cfg.camera.height) * standoff / f
     overlap = min(0.7, cfg.overlap + cfg.safety_sigmas * sigma / foot)
     base = tower_clearance(PlanOptions(standoff, cfg.gsd_mm))
