@@ -1,5 +1,6 @@
 """Scoring located boxes against known defects: the join by name, per box and per defect,
-the squarest box's side, and summaries over nothing."""
+the squarest box's side, an edge's defect seen from both faces, and summaries over
+nothing."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from turbinefit.eval.damage import score_damage
+from turbinefit.eval.damage import EDGE_WRAP_CHORD, defect_side, score_damage
 from turbinefit.inspection.defects import Defect
 from turbinefit.io.defects import LocatedDamage
 
@@ -75,3 +76,21 @@ def test_score_from_files(tmp_path: Path) -> None:
     s = score_damage_files(tmp_path / "d.csv", tmp_path / "t.csv").summary()
     assert (s["defects_seen"], s["right_part_and_side"]) == (1, 1.0)
     assert s["span_error_median_m"] == pytest.approx(0.2)
+
+
+def test_a_defect_seen_from_both_faces_wraps_the_edge_it_is_near() -> None:
+    """Both faces show it and its chord is near an edge: that edge, whichever box is the
+    squarest; near mid-chord, or one face only: the squarest box's side."""
+    both = [_box("D1", "blade_A", "pressure_side", 40.0, area=900.0),
+            _box("D1", "blade_A", "suction_side", 40.0, area=100.0)]
+    assert defect_side(both, 0.75) == "leading_edge"
+    assert defect_side(both, -0.8) == "trailing_edge"
+    assert defect_side(both, 0.2) == "pressure_side"  # a big box across the face
+    assert defect_side(both, None) == "pressure_side"
+    assert defect_side(both[:1], 0.95) == "pressure_side"
+    assert defect_side([], 0.9) is None
+    assert defect_side(both, EDGE_WRAP_CHORD) == "leading_edge"
+    boxes = [_box("D1", "blade_A", "pressure_side", 40.0, 0.8, area=400.0),
+             _box("D1", "blade_A", "suction_side", 40.2, 0.7, area=100.0)]
+    d1 = score_damage(boxes, TRUTH).defects[0]
+    assert (d1.side, d1.right_side) == ("leading_edge", True)
