@@ -30,6 +30,15 @@ the final fit alone: ``--missions 2 --kinds closed --maps ideal|photos --gps-sig
 ``--kinds closed --gps-sigma 5`` and ``--kinds closed,open --fit-gps-sigma 5`` are the
 comparison in ``docs/mission.md``.
 
+``--width-term`` adds the width term to the tracker and the final fit
+(``MissionConfig.width_term``: the camera's distance from a blade from how wide it
+looks); ``--kinds closed,rtk --width-term`` against ``bench_mission.json`` is the
+comparison in ``docs/mission.md``.
+
+Each mission's defects and located boxes go into the results too (``defect_truth``,
+``defect_boxes``, ``baseline_boxes``), so that a rule for placing a defect can be scored again without
+flying (:func:`turbinefit.eval.damage.score_damage`).
+
 Run: ``python benchmarks/bench_mission.py`` (20 seeds x 3 kinds; about 25 min with 2
 workers on 2 cores).
 """
@@ -55,7 +64,7 @@ KINDS = {"closed": {"closed_loop": True, "gnss": "standard"},
 
 
 def one(seed: int, turbine: str, kind: str, maps: str, gps_sigma: float | None = None,
-        fit_gps_sigma: float | None = None) -> dict[str, Any]:
+        fit_gps_sigma: float | None = None, width_term: bool = False) -> dict[str, Any]:
     """One mission's figures (run in a worker)."""
     from turbinefit.mission import MissionConfig, mission_outcome, run_mission
 
@@ -63,6 +72,7 @@ def one(seed: int, turbine: str, kind: str, maps: str, gps_sigma: float | None =
     cfg = MissionConfig(turbine=turbine, seed=seed, maps=maps,  # type: ignore[arg-type]
                         gps_sigma=gps_sigma if standard else None,
                         fit_gps_sigma=fit_gps_sigma if standard else None,
+                        width_term=width_term,
                         **KINDS[kind])  # type: ignore[arg-type]
     t0 = time.perf_counter()
     m = run_mission(cfg)
@@ -74,6 +84,13 @@ def one(seed: int, turbine: str, kind: str, maps: str, gps_sigma: float | None =
     baseline = [] if o.baseline_score is None else [
         {"right_side": d.right_side, "right_part": d.right_part, "span_error_m": d.span_error_m}
         for d in o.baseline_score.seen]
+    keys = ("photo", "defect", "part", "side", "chord", "distance_m", "area_px")
+    boxes = [] if o.damage_score is None else [
+        {k: getattr(b, k) for k in keys} for b in o.damage_score.boxes]
+    baseline_boxes = [] if o.baseline_score is None else [
+        {k: getattr(b, k) for k in keys} for b in o.baseline_score.boxes]
+    truth = [{k: getattr(d, k) for k in ("defect", "part", "side", "span_m", "chord", "size_m",
+                                         "kind")} for d in m.defects]
     updates = [k.update_s for k in m.inspection if k.update_s is not None]
     return {"seed": seed, "turbine": turbine, "kind": kind,
             "photos": len(m.inspection), "replans": m.replans,
@@ -82,6 +99,7 @@ def one(seed: int, turbine: str, kind: str, maps: str, gps_sigma: float | None =
             "clearance_rotor_m": o.clearance_rotor_m,
             "clearance_structure_m": o.clearance_structure_m,
             "estimate": o.estimate, "defects": defects, "baseline_defects": baseline,
+            "defect_truth": truth, "defect_boxes": boxes, "baseline_boxes": baseline_boxes,
             "update_ms_median": float(1000 * np.median(updates)) if updates else None,
             "fit_s": o.timings["fit"], "mission_s": t_run}
 
@@ -123,9 +141,9 @@ def summarise(rows: list[dict[str, Any]], standoff: float) -> dict[str, Any]:
     return out
 
 
-def timing(maps: str) -> dict[str, Any]:
+def timing(maps: str, width_term: bool = False) -> dict[str, Any]:
     """One closed mission alone: the tracker's update time and the fit of its photos."""
-    row = one(100, "nrel5mw", "closed", maps)
+    row = one(100, "nrel5mw", "closed", maps, width_term=width_term)
     return {"photos": row["photos"], "update_ms_median": row["update_ms_median"],
             "fit_s": row["fit_s"], "mission_s": row["mission_s"]}
 
@@ -142,14 +160,17 @@ def main() -> None:
                     "a standard deviation [m] (default: the GNSS model's 1.5 m)")
     ap.add_argument("--fit-gps-sigma", type=float, default=None, metavar="M",
                     help="the same for the final fit of each mission's photos alone")
+    ap.add_argument("--width-term", action="store_true",
+                    help="the width term in the tracker and the final fit "
+                    "(MissionConfig.width_term)")
     ap.add_argument("--timing", action="store_true", help="also time one mission alone")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "bench_mission.json")
     ap.add_argument("--resume", action="store_true",
                     help="keep the missions of an interrupted run (OUT.partial.json)")
     args = ap.parse_args()
     types = args.types.split(",")
-    jobs = [(s, types[s % len(types)], k, args.maps, args.gps_sigma, args.fit_gps_sigma)
-            for s in range(args.missions) for k in args.kinds.split(",")]
+    jobs = [(s, types[s % len(types)], k, args.maps, args.gps_sigma, args.fit_gps_sigma,
+             args.width_term) for s in range(args.missions) for k in args.kinds.split(",")]
     rows: list[dict[str, Any]] = []
     partial = args.out.with_suffix(".partial.json")
     if args.resume and partial.exists():
@@ -176,12 +197,12 @@ def main() -> None:
     rows.sort(key=lambda r: (r["seed"], r["kind"]))
     result: dict[str, Any] = {"machine": platform.platform(), "python": sys.version.split()[0],
                               "maps": args.maps, "gps_sigma_m": args.gps_sigma,
-                              "fit_gps_sigma_m": args.fit_gps_sigma,
+                              "fit_gps_sigma_m": args.fit_gps_sigma, "width_term": args.width_term,
                               "standoff_m": 10.0, "gsd_mm": 2.0,
                               "summary": summarise(rows, 10.0), "missions": rows}
     os.environ.pop("OMP_NUM_THREADS", None)
     if args.timing:
-        result["timing"] = timing(args.maps)
+        result["timing"] = timing(args.maps, args.width_term)
     args.out.parent.mkdir(exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1, default=float) + "\n")
     partial.unlink(missing_ok=True)

@@ -30,11 +30,13 @@ def test_midpoint_of_a_bar(centre: float) -> None:
     cen = np.stack([np.full_like(rows, guess_map), rows], axis=-1)[None]
     normal = np.broadcast_to([1.0, 0.0], cen.shape)
     hw = np.full((1, rows.size, 2), 9.0 / S)
-    tgt, found = find_edge_correspondences(photos, np.array([0]), cen, normal,
-                                           np.ones((1, rows.size), bool), hw, reach=2.0)
+    tgt, found, sep = find_edge_correspondences(photos, np.array([0]), cen, normal,
+                                                np.ones((1, rows.size), bool), hw, reach=2.0)
     assert found.all()
     want = (centre + 0.5) / S - 0.5
     np.testing.assert_allclose(tgt[0, :, 0], want, atol=0.05)  # map px (0.2 photo px)
+    # the apparent width: the two edges 18 photo px apart (where the bar's cover is half)
+    np.testing.assert_allclose(sep[0], 2 * 9.0 / S, atol=0.1)
     np.testing.assert_allclose(tgt[0, :, 1], rows, atol=1e-9)
 
 
@@ -45,6 +47,6 @@ def test_nothing_without_a_bar_of_that_width() -> None:
     cen = np.array([[[50.0, 30.0]], [[50.0, 30.0]]])
     normal = np.array([[[1.0, 0.0]], [[1.0, 0.0]]])
     hw = np.full((2, 1, 2), 9.0 / S)
-    _, found = find_edge_correspondences(photos, np.array([0, 1]), cen, normal,
-                                         np.ones((2, 1), bool), hw, reach=2.0)
+    _, found, _ = find_edge_correspondences(photos, np.array([0, 1]), cen, normal,
+                                            np.ones((2, 1), bool), hw, reach=2.0)
     assert not found.any()

@@ -68,6 +68,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    metavar="DEG", help="the gimbal's largest upward pitch [deg]")
     p.add_argument("--max-photos", type=job_option("mission", "MAX_PHOTOS"), default=None,
                    metavar="N", help="end after this many inspection photos (a short mission)")
+    p.add_argument("--width-term", action="store_true",
+                   help="add the width term to the tracker and the final fit: the camera's "
+                   "distance from a blade measured from how wide it looks in the photo "
+                   "(experimental: see docs/mission.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds nothing but a mission's outputs")
@@ -98,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
         defects=int(args.defects), maps=args.maps, odometry=args.odometry,
         photo_width=min(int(args.photo_width), camera.width),
         max_gimbal_up_deg=args.max_gimbal_up,
-        max_photos=int(args.max_photos) if args.max_photos is not None else 100_000)
+        max_photos=int(args.max_photos) if args.max_photos is not None else 100_000,
+        width_term=args.width_term)
 
     bar = None
     if not args.quiet:

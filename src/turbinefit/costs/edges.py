@@ -113,8 +113,10 @@ def find_edge_correspondences(
     usable: NDArray[np.bool_], half_width: FloatArray, reach: float,
     width_tolerance: float = WIDTH_TOLERANCE, min_contrast: float = MIN_CONTRAST,
     chunk: int = 1024,
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """The silhouettes' midpoints along the normals (module docstring).
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """The silhouettes' midpoints along the normals (module docstring), and the
+    separations of their two edges (the part's apparent width: the width term of
+    :mod:`turbinefit.costs.silhouette_width`).
 
     Args:
         photos: the flight's grey photos (indexed by ``keyframes``).
@@ -130,29 +132,33 @@ def find_edge_correspondences(
         chunk: samples searched at once (memory: chunk x profile length).
 
     Returns:
-        ``(target, found)``: (N, M, 2) midpoints [map px] and (N, M) where one was found.
+        ``(target, found, separation)``: (N, M, 2) midpoints [map px], (N, M) where one
+        was found, and (N, M) the separations of the two edges [map px] (0 where none was
+        found).
     """
     N, M = usable.shape
     target = np.zeros((N, M, 2))
     found = np.zeros((N, M), dtype=bool)
+    separation = np.zeros((N, M))
     sel = (usable & np.all(np.isfinite(centre), axis=-1) & np.all(np.isfinite(half_width), -1)
            & (half_width[..., 0] > 0))
     n_idx, m_idx = np.nonzero(sel)
     kf = np.asarray(keyframes, dtype=np.int64)
     for a in range(0, n_idx.size, chunk):
         nn, mm = n_idx[a:a + chunk], m_idx[a:a + chunk]
-        tgt, has = _search(photos, kf[nn], centre[nn, mm], normal[nn, mm],
-                           half_width[nn, mm], reach, width_tolerance, min_contrast)
+        tgt, has, sep = _search(photos, kf[nn], centre[nn, mm], normal[nn, mm],
+                                half_width[nn, mm], reach, width_tolerance, min_contrast)
         target[nn[has], mm[has]] = tgt[has]
         found[nn[has], mm[has]] = True
-    return target, found
+        separation[nn[has], mm[has]] = sep[has]
+    return target, found, separation
 
 
 def _search(photos: PhotoStack, kf: NDArray[np.int_], centre: FloatArray, nrm: FloatArray,
             half_width: FloatArray, reach: float, width_tolerance: float,
-            min_contrast: float) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """:func:`find_edge_correspondences` on K samples (K,): targets (K, 2) [map px] and
-    whether each was found."""
+            min_contrast: float) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """:func:`find_edge_correspondences` on K samples (K,): targets (K, 2) [map px],
+    whether each was found, and the edges' separations (K,) [map px]."""
     s = photos.scale
     c = (centre + 0.5) * s - 0.5  # photo px
     lo = 2 * half_width[:, 0] * s / width_tolerance
@@ -197,4 +203,4 @@ def _search(photos: PhotoStack, kf: NDArray[np.int_], centre: FloatArray, nrm: F
     ti = np.interp(_extremum(ag, i), grid, t)
     tj = np.interp(_extremum(ag, j), grid, t)
     tgt = c + (0.5 * (ti + tj))[:, None] * nrm
-    return (tgt + 0.5) / s - 0.5, has
+    return (tgt + 0.5) / s - 0.5, has, np.abs(tj - ti) / s

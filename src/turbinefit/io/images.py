@@ -209,6 +209,15 @@ def write_png(path: StrPath, image: U8Image, fsync: bool = True) -> Path:
     return write_bytes_atomic(path, encode_png(image), fsync=fsync)
 
 
+def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """Grey levels (H, W) uint8 of an RGB uint8 (H, W, 3) image (ITU-R 601 luma, as
+    Pillow's ``convert("L")``); a grey image is returned as it is."""
+    if image.ndim == 2:
+        return image
+    luma = image.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+    return np.round(luma).clip(0, 255).astype(np.uint8)
+
+
 def resize_image(image: U8Image, width: int, height: int,
                  box: tuple[float, float, float, float] | None = None) -> U8Image:
     """An RGB uint8 image resized to ``width`` x ``height`` (bilinear, antialiased).

@@ -8,6 +8,7 @@ flight folder.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -39,7 +40,7 @@ from turbinefit.jobs.outputs import (
     recorded_path,
     summary_json,
 )
-from turbinefit.jobs.sources import fit_config_for, open_heatmaps, source_photos
+from turbinefit.jobs.sources import fit_config_for, open_heatmaps, photo_stack, source_photos
 from turbinefit.solver.config import FitConfig
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.solver.lm import IterationRecord
@@ -219,6 +220,9 @@ def fit_folder(
             init = estimate_turbine(stack, source.camera, folder.keyframes.poses,
                                     where=flight_dir, gt_turbine=folder.gt_turbine)
         flight = folder.flight(stack, source.camera, None if init is None else init.turbine)
+        if (cfg.lambda_edges > 0 or cfg.lambda_width > 0) and cfg.lines == "corr":
+            flight = dataclasses.replace(flight, photos=photo_stack(
+                flight_dir, flight.timestamps, flight.camera))
         timings["load"] = time.perf_counter() - t0
 
         t1 = time.perf_counter()

@@ -232,7 +232,8 @@ def mission_folder(out_dir: str | os.PathLike[str], config: MissionConfig, *,
             "estimate"), fsync=False)
         write_text_atomic(track / "latency.csv", _latency_csv(mission), fsync=False)
         poses, turbine = final_start(mission)
-        report = fit_folder(tmp / "flight", tmp / "fit", config.final_fit_config(), plots=plots,
+        report = fit_folder(tmp / "flight", tmp / "fit",
+                            config.final_fit_config(mission.known_pitch), plots=plots,
                             initial_poses=poses, initial_turbine=turbine)
         outcome = mission_outcome(mission, report.result)
         coverage_folder(tmp / "fit", tmp / "coverage", flight_dir=tmp / "flight",

@@ -22,12 +22,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.costs.edges import PhotoStack
 from turbinefit.errors import InputError
 from turbinefit.geometry.camera import PinholeCamera, reduced_size
 from turbinefit.heatmaps import HeatmapStack, HeatmapValueError
 from turbinefit.io.flight_folder import IMAGE_DIR, FlightFolder, has_heatmaps, keyframe_images
 from turbinefit.io.heatmap_files import ValueCheck, value_error
-from turbinefit.io.images import image_size, read_image, resize_image
+from turbinefit.io.images import image_size, read_image, resize_image, to_grey
 from turbinefit.solver.config import FILE_FIT_DEFAULTS, PHOTO_FIT_DEFAULTS
 
 if TYPE_CHECKING:  # detection (onnxruntime, scipy) is imported only when photos are used
@@ -276,3 +277,44 @@ def source_photos(source: HeatmapSource) -> Callable[[int], NDArray[np.uint8]] |
     def photo(k: int) -> NDArray[np.uint8]:
         return resize_image(read_image(paths[k], reduce_to=size), *size)  # PNGs: full decode
     return photo
+
+
+#: The photo terms read the photos at most this many times the heat-maps' width.
+PHOTO_TERM_SCALE = 4
+
+
+def grey_photos(flight_dir: str | os.PathLike[str], timestamps: NDArray[np.float64],
+                map_camera: PinholeCamera
+                ) -> tuple[Callable[[int], NDArray[np.uint8]], float] | None:
+    """Keyframe index -> its photo (``images/``) in grey levels for the edge and width
+    terms (``lambda_edges``, ``lambda_width``), read at the heat-maps' aspect and at most
+    :data:`PHOTO_TERM_SCALE` times their width (a 20 MP JPEG decoded at a reduced DCT
+    scale: 1.2 MB a photo for 320 px maps), and the photos' scale (photo px per map px);
+    None without ``images/``.
+
+    Raises:
+        InputError: naming the first keyframe without a photo, or a photo that cannot be
+            read (as each is read).
+    """
+    if not (Path(flight_dir) / IMAGE_DIR).is_dir():
+        return None
+    paths = keyframe_images(flight_dir, timestamps)
+    w0, _ = image_size(paths[0])
+    width = min(w0, PHOTO_TERM_SCALE * map_camera.width)
+    height = max(1, round(width * map_camera.height / map_camera.width))
+
+    def photo(k: int) -> NDArray[np.uint8]:
+        return to_grey(resize_image(read_image(paths[k], reduce_to=(width, height)), width,
+                                    height))
+    return photo, width / map_camera.width
+
+
+def photo_stack(flight_dir: str | os.PathLike[str], timestamps: NDArray[np.float64],
+                map_camera: PinholeCamera) -> PhotoStack | None:
+    """Every keyframe's grey photo (:func:`grey_photos`) as one stack, or None without
+    ``images/``."""
+    reader = grey_photos(flight_dir, timestamps, map_camera)
+    if reader is None:
+        return None
+    photo, scale = reader
+    return PhotoStack(np.stack([photo(k) for k in range(len(timestamps))]), scale)

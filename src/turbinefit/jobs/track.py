@@ -40,7 +40,7 @@ from turbinefit.jobs.outputs import (
     recorded_path,
     summary_json,
 )
-from turbinefit.jobs.sources import fit_config_for, open_heatmaps
+from turbinefit.jobs.sources import fit_config_for, grey_photos, open_heatmaps
 from turbinefit.solver.tracker import KeyframeError, Tracker, TrackerConfig, TrackEstimate
 from turbinefit.solver.verdict import ImageEvidence, Signals
 from turbinefit.turbine.model import TurbineGeometry, TurbineParams, model_point_error
@@ -266,6 +266,9 @@ def track_folder(
         initial_turbine = init.turbine
     tracker = Tracker(source.camera, initial_turbine, cfg)
     odometry = folder.odometry  # its steps are the pairwise measurements, if present
+    photos = (grey_photos(flight_dir, folder.timestamps, source.camera)
+              if (fit_cfg.lambda_edges > 0 or fit_cfg.lambda_width > 0)
+              and fit_cfg.lines == "corr" else None)
     latency = np.empty(n)
     image: list[ImageEvidence] = []
     for k in range(n):
@@ -275,7 +278,8 @@ def track_folder(
             est = tracker.update(float(folder.timestamps[k]), poses[k], maps,
                                  odometry=None if odometry is None else odometry[k],
                                  position_sigma=None if folder.position_sigma is None
-                                 else folder.position_sigma[k])
+                                 else folder.position_sigma[k],
+                                 photo=None if photos is None else photos[0](k))
         except KeyframeError as exc:
             raise InputError(exc.reason, source.where(k)) from None
         latency[k] = (time.perf_counter() - t0) * 1e3

@@ -28,6 +28,8 @@ MAP_KINDS = ("photos", "ideal")
 ODOMETRY_KINDS = ("vio", "gnss")
 #: Width [px] of the heat-maps (the shipped CNN's output for a 320 px photo).
 MAP_WIDTH = 160
+#: The width term's weight with :attr:`MissionConfig.width_term`.
+WIDTH_WEIGHT = 1.0
 @dataclass(frozen=True)
 class InitialError:
     """How far the typed-in turbine is from the truth: each parameter off by a uniform
@@ -103,6 +105,11 @@ class MissionConfig:
             :attr:`gps_sigma`). After the flight a batch fit has every photo of every side
             and can weigh the fixes less than a tracker in flight, whose causal estimate
             they keep from drifting (``bench_mission.py --fit-gps-sigma``).
+        width_term: the width term (:mod:`turbinefit.costs.silhouette_width`) in the tracker
+            and the final fit, weight :data:`WIDTH_WEIGHT`: the camera's distance from a
+            blade from how wide it looks in the photo, the blades' sections taken at the
+            pitch the operator knows (needs the photos: not with ideal maps and no
+            defects).
     """
 
     turbine: str = "nrel5mw"
@@ -131,6 +138,7 @@ class MissionConfig:
         fit=replace(FitConfig(), **PHOTO_FIT_DEFAULTS)))
     gps_sigma: float | None = None
     fit_gps_sigma: float | None = None
+    width_term: bool = False
 
     def __post_init__(self) -> None:
         if self.turbine not in TURBINE_PRESETS:
@@ -152,17 +160,23 @@ class MissionConfig:
             raise ValueError(f"photo_width must be between 32 and the camera's width "
                              f"({self.camera.width}), got {self.photo_width}")
 
-    def fit_config(self) -> FitConfig:
+    def fit_config(self, blade_pitch: float | None = None) -> FitConfig:
         """The cost and options of the tracker and the final fit: the tracker's, anchored
         to the GNSS fixes (``gauge="gps"`` at :attr:`gps_sigma`, by default the GNSS
         model's horizontal sigma: a compass yaw bias is then estimated, not held fixed at
-        the first keyframe's)."""
+        the first keyframe's); with :attr:`width_term`, the width term, its blades at
+        ``blade_pitch`` [rad, the renderer's convention] (the pitch the operator knows)."""
         sigma = self.gps_sigma or max(float(gnss_model(self.gnss).horizontal_m), 0.01)
-        return replace(self.tracker.fit, gauge="gps", gps_sigma=sigma)
+        cfg = replace(self.tracker.fit, gauge="gps", gps_sigma=sigma)
+        if self.width_term:
+            cfg = replace(cfg, lambda_width=WIDTH_WEIGHT,
+                          blade_pitch_deg=None if blade_pitch is None
+                          else math.degrees(blade_pitch))
+        return cfg
 
-    def final_fit_config(self) -> FitConfig:
+    def final_fit_config(self, blade_pitch: float | None = None) -> FitConfig:
         """The final fit's: :meth:`fit_config` with :attr:`fit_gps_sigma` if given."""
-        cfg = self.fit_config()
+        cfg = self.fit_config(blade_pitch)
         return cfg if self.fit_gps_sigma is None else replace(cfg, gps_sigma=self.fit_gps_sigma)
 
     def photo_camera(self) -> PinholeCamera:

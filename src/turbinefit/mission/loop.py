@@ -71,6 +71,7 @@ from turbinefit.inspection.plan import (
     plan_path,
 )
 from turbinefit.inspection.surface import SurfaceShape, TurbineSurface
+from turbinefit.io.images import to_grey
 from turbinefit.mission.config import InitialError, MissionConfig
 from turbinefit.mission.replan import (
     moved,
@@ -159,6 +160,8 @@ class Mission:
         timings: seconds per stage.
         replan_errors: why the planner refused each replan it refused.
         blade_pitch: the blades' pitch as the renderer draws them [rad].
+        known_pitch: the pitch the operator knows (``blade_pitch`` to within
+            :attr:`InitialError.blade_pitch_deg`), in the same terms [rad].
         estimates_rejected: replans not made because the tracker's turbine was not
             :func:`plausible`.
     """
@@ -182,6 +185,7 @@ class Mission:
     blade_pitch: float = 0.0
     plan_turbines: list[TurbineParams] = field(default_factory=list)
     estimates_rejected: int = 0
+    known_pitch: float = 0.0
 
     @property
     def inspection(self) -> list[Keyframe]:
@@ -347,7 +351,7 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
         keyframes.append(kf)
         return kf
 
-    fit_cfg = cfg.fit_config()
+    fit_cfg = cfg.fit_config(-known_shape.blade_pitch)
     here: FloatArray | None = None
     last_est: TrackEstimate | None = None
     if cfg.closed_loop:
@@ -451,14 +455,21 @@ def run_mission(cfg: MissionConfig, progress: Callable[[str, int, int], None] | 
     return Mission(cfg, truth, typed_in, initial, defects, keyframes, np.array(path_true),
                    np.array(path_rec), np.array(path_est), plans, replans, failures,
                    tracker, init_note, timings, replan_errors, photos.scene.blade_pitch,
-                   plan_turbines, rejected)
+                   plan_turbines, rejected, -known_shape.blade_pitch)
 
 
 def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
     """The tracker's update with keyframe ``kf`` (its odometry, and its fix's sigmas with
     RTK)."""
     return tracker.update(kf.timestamp, kf.recorded, kf.heatmaps, odometry=kf.odometry,
-                          position_sigma=kf.position_sigma if rtk else None)
+                          position_sigma=kf.position_sigma if rtk else None,
+                          photo=grey_photo(kf) if tracker.config.fit.lambda_width > 0
+                          or tracker.config.fit.lambda_edges > 0 else None)
+
+
+def grey_photo(kf: Keyframe) -> NDArray[np.uint8] | None:
+    """The keyframe's photo in grey levels (H, W), or None without one."""
+    return None if kf.image is None else to_grey(kf.image)
 
 
 def _initial_turbine(keyframes: list[Keyframe], camera: PinholeCamera,

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from turbinefit.costs.edges import PhotoStack
 from turbinefit.eval.damage import DamageScore, score_damage
 from turbinefit.eval.metrics import accuracy
 from turbinefit.flight import Flight
@@ -37,7 +38,7 @@ from turbinefit.inspection.clearance import ROTOR, STRUCTURE, path_clearance, so
 from turbinefit.inspection.coverage import COVERED_PARTS, flight_coverage, side_names
 from turbinefit.inspection.surface import PARTS, SurfaceShape, TurbineSurface, locate_box
 from turbinefit.io.defects import LocatedDamage
-from turbinefit.mission.loop import Keyframe, Mission
+from turbinefit.mission.loop import Keyframe, Mission, grey_photo
 from turbinefit.mission.replan import plausible
 from turbinefit.solver.fit import FitResult, fit
 from turbinefit.turbine.model import TurbineParams
@@ -121,10 +122,20 @@ def final_fit(mission: Mission) -> FitResult:
                     turbine=mission.typed_in,
                     odometry=_poses(kfs, "odometry") if kfs[0].odometry is not None else None,
                     gt_world_T_cam=_poses(kfs, "true"), gt_turbine=mission.truth,
-                    position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None)
+                    position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None,
+                    photos=_photos(kfs, mission.config.map_camera().width))
     poses, turbine = final_start(mission)
-    return fit(flight, mission.config.final_fit_config(), initial_poses=poses,
-               initial_turbine=turbine)
+    return fit(flight, mission.config.final_fit_config(mission.known_pitch),
+               initial_poses=poses, initial_turbine=turbine)
+
+
+def _photos(kfs: list[Keyframe], map_width: int) -> PhotoStack | None:
+    """The keyframes' grey photos (None unless every keyframe has one)."""
+    grey = [grey_photo(k) for k in kfs]
+    if not grey or any(g is None for g in grey):
+        return None
+    images = np.stack([g for g in grey if g is not None])
+    return PhotoStack(images, images.shape[2] / map_width)
 
 
 def mission_outcome(mission: Mission, result: FitResult | None = None) -> MissionOutcome:

@@ -98,6 +98,19 @@ class FitConfig:
     edge_reach: float = 2.0
     """How far the edge midpoint may lie from the net's line correspondence [px of maps
     320 px wide]."""
+    lambda_width: float = 0.0
+    """Weight of the width term (turbinefit.costs.silhouette_width): each line sample's
+    depth measured from the separation of the silhouette edges the edge search finds in
+    the photo (the tower's always; the blades' where ``blade_pitch_deg`` is known), what
+    holds the camera's distance to a blade in a close-up; needs the keyframes' grey
+    photos and lines=corr, as the edge term does; 0 = off."""
+    blade_pitch_deg: float | None = None
+    """The blades' pitch [deg] as the photos show them (0: the chord in the rotor plane,
+    about 90 feathered; the renderer's convention, turbinefit.turbine.solid), for the
+    width term's blade sections; None: unknown, the blades' widths are not used."""
+    blade_pitch_sigma_deg: float = 2.0
+    """How well ``blade_pitch_deg`` is known [deg]: its share of the width term's
+    noise."""
     pair_information: tuple[float, ...] | None = None
     """Full 6x6 information matrix C (row-major, 36 values; translation first, 1/m^2 and
     1/rad^2); overrides the two sigmas above."""
@@ -201,13 +214,13 @@ class FitConfig:
         positive = ("initial_damping", "pixel_sigma", "pair_sigma_t", "pair_sigma_r_deg", "corr_radius",
                     "line_search", "robust_scale", "gps_sigma",
                     "warmup_pixel_sigma", "warmup_function_tolerance", "motion_robust_scale",
-                    "edge_sigma", "edge_reach")
+                    "edge_sigma", "edge_reach", "blade_pitch_sigma_deg")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise bad(name, "must be a positive number")
         for name in ("lambda_points", "lambda_lines", "lambda_pair", "lambda_motion",
-                     "lambda_edges",
+                     "lambda_edges", "lambda_width",
                      "border_margin",
                      "warmup_stiffness",
                      "pair_sigma_t_per_m"):
@@ -218,6 +231,11 @@ class FitConfig:
             v = getattr(self, name)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
                 raise bad(name, "must be a whole number >= 0")
+        if self.blade_pitch_deg is not None and not (
+                isinstance(self.blade_pitch_deg, int | float)
+                and not isinstance(self.blade_pitch_deg, bool)
+                and -180.0 <= self.blade_pitch_deg <= 180.0):
+            raise bad("blade_pitch_deg", "must be a number of degrees in [-180, 180] or unset")
         if not isinstance(self.warmup, bool):
             raise bad("warmup", "must be true or false")
         if not (isinstance(self.heatmap_floor, int | float) and 1e-4 <= self.heatmap_floor < 1):

@@ -48,46 +48,28 @@ from turbinefit.costs.correspondence import (
     find_line_correspondences,
     find_point_correspondences,
 )
-from turbinefit.costs.edges import PhotoStack, find_edge_correspondences
+from turbinefit.costs.edges import PhotoStack
 from turbinefit.costs.heatmap_cost import heatmap_terms
 from turbinefit.costs.pairwise import pairwise_residuals, relative_poses
 from turbinefit.costs.position_prior import position_prior_residuals
 from turbinefit.costs.projection import project_points
 from turbinefit.costs.relative_motion import RelativeMotions, relative_motion_residuals
 from turbinefit.costs.robust import RobustLoss
+from turbinefit.costs.silhouette_width import WidthDepths, width_terms
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.heatmaps import HeatmapStack
 from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.marginal import GaussianPrior
+from turbinefit.solver.photo_terms import MIN_EDGE_SCALE, silhouette_correspondences
 from turbinefit.turbine.model import (
     LINES,
     POINT_CHANNELS,
-    LineSampling,
     line_samples,
     model_points,
 )
-from turbinefit.turbine.solid import TurbineSolid, blade_profile
 
 FloatArray = NDArray[np.float64]
-
-#: The lines whose silhouettes the edge term searches: the tower and the three blades.
-EDGE_LINES = (0, 2, 3, 4)
-#: Photos less than this many times the maps' size are not searched for edges: at the
-#: maps' own resolution the net's line correspondences are the more precise (0.19-0.24
-#: against 0.42 map px off the true lines, ``benchmarks/bench_precision.py``).
-MIN_EDGE_SCALE = 2.0
-#: Line samples nearer the camera than this [m] are not searched for edges.
-MIN_EDGE_DEPTH = 1.0
-
-
-def _depths(world_T_cam: SE3, points: FloatArray) -> FloatArray:
-    """(N, M) depths along each camera's optical axis of world ``points`` (M, 3), shared,
-    or (N, M, 3), per camera."""
-    R = world_T_cam.rotation_matrix()  # (N, 3, 3)
-    d = (points if points.ndim == 3 else points[None]) - world_T_cam.translation[:, None]
-    return np.einsum("nk,nmk->nm", R[:, :, 2], d)
-
 
 class ProblemData(Protocol):
     """What a :class:`FitProblem` reads of its keyframes: a
@@ -168,6 +150,8 @@ class Correspondences:
     edge_target: FloatArray | None = None
     """(N, M, 2) silhouette midpoints of the line samples found in the photos (edge term)."""
     edge_found: NDArray[np.bool_] | None = None
+    width: WidthDepths | None = None
+    """The line samples' depths measured from their apparent widths (width term)."""
 
     def count(self) -> int:
         n = 0
@@ -284,7 +268,8 @@ class FitProblem:
         #: the flight's photos for the edge term (indexed by ``keyframes``), or None
         photos = getattr(data, "photos", None)
         self.photos: PhotoStack | None = (
-            photos if config.lambda_edges > 0 and config.lines == "corr"
+            photos if (config.lambda_edges > 0 or config.lambda_width > 0)
+            and config.lines == "corr"
             and photos is not None and photos.scale >= MIN_EDGE_SCALE else None)
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
@@ -382,39 +367,11 @@ class FitProblem:
                 self.data.heatmaps, self.keyframes, self._line_channels, pr.uv, normal,
                 usable, cfg.px("line_search"), cfg.corr_threshold, self.search_step)
             if self.photos is not None:
-                out.edge_target, out.edge_found = self._edge_correspondences(
-                    poses, theta, S, out.line_fractions, out.line_target, out.line_found,
+                out.edge_target, out.edge_found, out.width = silhouette_correspondences(
+                    cfg, cam, self.photos, self.keyframes, poses, theta, S,
+                    out.line_fractions, self._line_index, out.line_target, out.line_found,
                     normal)
         return out
-
-    def _edge_correspondences(self, poses: SE3, theta: FloatArray, S: FloatArray,
-                              fractions: FloatArray | None, centre: FloatArray,
-                              found: NDArray[np.bool_], normal: FloatArray
-                              ) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """The edge term's correspondences of the tower's and blades' line samples: the
-        silhouette's midpoint in the photo near the net's line correspondence, searched
-        for with the part's expected half-width at the sample's depth."""
-        assert self.photos is not None
-        N = self.num_keyframes
-        n = self.config.samples_per_line
-        f = (np.broadcast_to(LineSampling(n).fractions(), (N, len(LINES), n))
-             if fractions is None else fractions)
-        # half-widths [m] of each line's cross-section at its samples: (N, 5, n, 2)
-        solid = TurbineSolid(theta, self.config.geometry)
-        hw = np.zeros((N, len(LINES), n, 2))
-        r = solid.r0 + (solid.r1 - solid.r0) * f[:, 0]
-        hw[:, 0, :, 0] = hw[:, 0, :, 1] = r
-        A, Bt = blade_profile(f[:, 2:].astype(np.float32), solid.b)
-        hw[:, 2:, :, 0] = Bt
-        hw[:, 2:, :, 1] = A
-        half_width = hw.reshape(N, -1, 2)
-        edge_line = np.isin(self._line_index, EDGE_LINES)
-        depth = _depths(poses, S)
-        px_per_m = self.data.camera.fx / np.maximum(depth, 1e-3)
-        usable = found & edge_line[None] & (depth > MIN_EDGE_DEPTH)
-        return find_edge_correspondences(
-            self.photos, self.keyframes, centre, normal, usable,
-            half_width * px_per_m[..., None], self.config.px("edge_reach"))
 
     def pairwise_edge(self, poses: SE3, edge: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The whitened residual (6,) of pairwise edge ``edge`` (between the problem's
@@ -571,6 +528,15 @@ class FitProblem:
             assert JtHJ_img is not None and g_img is not None
             JtHJ[sel] = JtHJ_img
             g_u[sel] = g_img
+        if corr.width is not None and cfg.lambda_width > 0:
+            blend = None if lns.JA is None or lns.JB is None else (lns.JA, lns.JB, lns.f)
+            terms["width"], in_view["width"], Hw, gw = width_terms(
+                poses, np.broadcast_to(lns.points(), (N, *lns.A.shape)), blend,
+                corr.width, cfg.lambda_width, with_jacobian)
+            n_res += in_view["width"]
+            if Hw is not None and gw is not None and JtHJ is not None and g_u is not None:
+                JtHJ += Hw
+                g_u += gw
         want_pair = N > 1 and cfg.lambda_pair > 0
         if want_pair:
             rp, Ji, Jj = pairwise_residuals(poses[:-1], poses[1:], self._measured_rel,

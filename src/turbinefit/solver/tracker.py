@@ -63,12 +63,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from turbinefit.costs.relative_motion import RelativeMotions
-from turbinefit.errors import TurbinefitError
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
-from turbinefit.heatmaps import NUM_CHANNELS
 from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
 from turbinefit.solver.fit import match_config
+from turbinefit.solver.keyframe_input import KeyframeError as KeyframeError  # update raises it
+from turbinefit.solver.keyframe_input import (
+    check_keyframe,
+    check_motion,
+    check_photo,
+    check_position_sigma,
+)
 from turbinefit.solver.linalg import arrow_covariance, inverse_spd
 from turbinefit.solver.marginal import (
     GaussianPrior,
@@ -239,16 +244,6 @@ class TrackAssessment:
         return self.signals.theta_std
 
 
-class KeyframeError(TurbinefitError, ValueError):
-    """An input keyframe is unusable (out of order, wrong shape, not finite); ``index``
-    is its number in arrival order. The tracker's state is unchanged."""
-
-    def __init__(self, index: int, message: str) -> None:
-        super().__init__(f"keyframe {index}: {message}")
-        self.index = index
-        self.reason = message
-
-
 def marginal_config(cfg: FitConfig) -> FitConfig:
     """The cost a keyframe's image terms are linearised with when it leaves the window
     (``marginal_terms="corr"``): correspondences for points and lines, line residuals along
@@ -278,8 +273,9 @@ class Tracker:
         initial_turbine: the turbine's initial estimate (the centre of the start-up prior).
         config: see :class:`TrackerConfig`.
 
-    The tracker takes heat-maps only: photos are turned into them before :meth:`update`
-    (e.g. by :class:`turbinefit.jobs.sources.PhotoHeatmaps`). Every keyframe passed to
+    The tracker takes heat-maps: photos are turned into them before :meth:`update`
+    (e.g. by :class:`turbinefit.jobs.sources.PhotoHeatmaps`); the grey photos themselves
+    only for the edge and width terms (``photo=``). Every keyframe passed to
     :meth:`update` must have a later timestamp than the one before. Heat-maps are
     referenced, not copied, while their keyframe is in the window.
     """
@@ -365,47 +361,10 @@ class Tracker:
     # ------------------------------------------------------------------------------
     def _check(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating],
                odometry: SE3 | None) -> NDArray[np.floating]:
-        k = len(self._times)
-        if self._has_odometry is not None and (odometry is not None) != self._has_odometry:
-            raise KeyframeError(k, "odometry pose given, but not for the keyframes before"
-                                if odometry is not None else
-                                "no odometry pose, but the keyframes before had one")
-        if odometry is not None and (odometry.batch_shape != ()
-                                     or not np.all(np.isfinite(odometry.wxyz_xyz))):
-            raise KeyframeError(k, "odometry pose must be one finite SE3")
-        if not math.isfinite(timestamp):
-            raise KeyframeError(k, "timestamp is not finite")
-        if self._times and timestamp <= self._times[-1]:
-            raise KeyframeError(k, f"timestamp {float(timestamp)!r} is not after the previous "
-                                f"one ({float(self._times[-1])!r})")
-        if world_T_cam.batch_shape != () or not np.all(np.isfinite(world_T_cam.wxyz_xyz)):
-            raise KeyframeError(k, "pose must be one finite SE3")
-        maps = np.asarray(heatmaps)
-        shape = (NUM_CHANNELS, self.camera.height, self.camera.width)
-        if maps.shape != shape:
-            raise KeyframeError(k, f"heat-maps have shape {maps.shape}, expected {shape}")
-        dtype = self._map_dtype or (np.float16 if maps.dtype == np.float16 else np.float32)
-        if maps.dtype != dtype or not maps.flags.c_contiguous:
-            maps = np.ascontiguousarray(maps, dtype=dtype)
-        if not math.isfinite(float(maps.sum(dtype=np.float64))):  # float64: cannot overflow
-            raise KeyframeError(k, "heat-maps contain NaN or inf")
-        self._map_dtype = dtype
+        maps, self._map_dtype = check_keyframe(
+            len(self._times), timestamp, self._times[-1] if self._times else None,
+            world_T_cam, heatmaps, odometry, self._has_odometry, self.camera, self._map_dtype)
         return maps
-
-    def _check_sigma(self, position_sigma: NDArray[np.floating] | None) -> FloatArray | None:
-        """The keyframe's position standard deviations (3,), checked: given for every
-        keyframe or none (the first decides), positive and finite."""
-        k = len(self._times)
-        if position_sigma is None:
-            if self._window is not None and self._window.data.position_sigma is not None:
-                raise KeyframeError(k, "no position_sigma, but the keyframes before had one")
-            return None
-        if self._window is not None and self._window.data.position_sigma is None:
-            raise KeyframeError(k, "position_sigma given, but not for the keyframes before")
-        s = np.asarray(position_sigma, dtype=np.float64)
-        if s.shape != (3,) or not np.all(np.isfinite(s)) or not np.all(s > 0):
-            raise KeyframeError(k, "position_sigma must be 3 positive finite numbers")
-        return s
 
     def _fixed(self) -> NDArray[np.bool_]:
         assert self._window is not None
@@ -456,7 +415,8 @@ class Tracker:
     def update(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating], *,
                odometry: SE3 | None = None,
                position_sigma: NDArray[np.floating] | None = None,
-               motion: RelativeMotions | None = None) -> TrackEstimate:
+               motion: RelativeMotions | None = None,
+               photo: NDArray[np.generic] | None = None) -> TrackEstimate:
         """Add one keyframe and refine; returns the estimate for it.
 
         Args:
@@ -478,6 +438,9 @@ class Tracker:
                 points (one entry of :class:`~turbinefit.costs.relative_motion.
                 RelativeMotions`, e.g. from :class:`turbinefit.tiepoints.MotionMeter`),
                 or None: the tie-point term (``lambda_motion``) between the two.
+            photo: its grey photo (H, W), uint8 or float, a whole multiple (at least 2)
+                of the heat-maps' size, for the edge and width terms (``lambda_edges``,
+                ``lambda_width``). Given for every keyframe or for none.
 
         Raises:
             KeyframeError: on input that is out of order, of the wrong shape or not finite
@@ -485,8 +448,9 @@ class Tracker:
         """
         t0 = time.perf_counter()
         maps = self._check(float(timestamp), world_T_cam, heatmaps, odometry)
-        sigma = self._check_sigma(position_sigma)
-        motion = _one_motion(motion, len(self._times))
+        sigma = check_position_sigma(len(self._times), position_sigma, self._window)
+        motion = check_motion(len(self._times), motion)
+        photos = check_photo(len(self._times), photo, self._window, self.camera)
         if self._has_odometry is None:  # the first keyframe resolves pair_frame="auto"
             self._has_odometry = odometry is not None
             self.config = dataclasses.replace(
@@ -499,7 +463,8 @@ class Tracker:
         w = self._window
         if w is None:
             self._window = TrackWindow.first(self.camera, index, float(timestamp), world_T_cam,
-                                             maps, world_T_cam, evidence, odometry, sigma)
+                                             maps, world_T_cam, evidence, odometry, sigma,
+                                             motion, photos)
         else:
             last = len(w) - 1
             meas = w.data.measurement_poses()[last]
@@ -507,7 +472,7 @@ class Tracker:
                             world_T_cam if odometry is None else odometry,
                             self.config.fit.pair_frame)
             self._window = w.append(index, float(timestamp), world_T_cam, maps, pred, evidence,
-                                    odometry, sigma, motion)
+                                    odometry, sigma, motion, photos)
 
         cfg = self.config
         stages = []
@@ -663,10 +628,3 @@ class Tracker:
         cfg = self.config
         self._run([(self._refine_cfg, cfg.finish_rounds, cfg.finish_iterations)])
         return self.turbine
-
-
-def _one_motion(motion: RelativeMotions | None, index: int) -> RelativeMotions | None:
-    """A keyframe's tie-point motion, checked to be one entry."""
-    if motion is not None and len(motion) != 1:
-        raise KeyframeError(index, f"motion must hold one entry, got {len(motion)}")
-    return motion

@@ -85,16 +85,18 @@ class TrackWindow:
               heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
               odometry: SE3 | None = None,
               position_sigma: FloatArray | None = None,
-              motion: RelativeMotions | None = None) -> TrackWindow:
+              motion: RelativeMotions | None = None,
+              photo: PhotoStack | None = None) -> TrackWindow:
         """A window of one keyframe: its measured pose, heat-maps, estimate and, if the
-        flight has them, its odometry pose, position standard deviations (3,) and its
-        relative motion from the keyframe before (one entry)."""
+        flight has them, its odometry pose, position standard deviations (3,), its
+        relative motion from the keyframe before (one entry) and its grey photo (a stack
+        of one)."""
         data = Keyframes(camera, np.array([timestamp], dtype=np.float64),
                          SE3(measured.wxyz_xyz[None].copy()), HeatmapStack([heatmaps]),
                          None if odometry is None else SE3(odometry.wxyz_xyz[None].copy()),
                          None if position_sigma is None
                          else np.asarray(position_sigma, dtype=np.float64).reshape(1, 3),
-                         motion)
+                         motion, photo)
         return TrackWindow(np.array([index], dtype=np.int64), data,
                            SE3(world_T_cam.wxyz_xyz[None].copy()), np.array([evidence]))
 
@@ -102,9 +104,11 @@ class TrackWindow:
                heatmaps: NDArray[np.floating], world_T_cam: SE3, evidence: bool,
                odometry: SE3 | None = None,
                position_sigma: FloatArray | None = None,
-               motion: RelativeMotions | None = None) -> TrackWindow:
-        """The window with one more keyframe at its end (``odometry`` and
-        ``position_sigma`` given exactly when the window's keyframes have them;
+               motion: RelativeMotions | None = None,
+               photo: PhotoStack | None = None) -> TrackWindow:
+        """The window with one more keyframe at its end (``odometry``,
+        ``position_sigma`` and ``photo``, a stack of one, given exactly when the window's
+        keyframes have them;
         ``motion``: its relative motion from the window's last keyframe, one entry, or
         None for none)."""
         d = self.data
@@ -113,6 +117,8 @@ class TrackWindow:
         if (position_sigma is None) != (d.position_sigma is None):
             raise ValueError("position_sigma must be given for every keyframe of a window "
                              "or none")
+        if (photo is None) != (d.photos is None):
+            raise ValueError("photos must be given for every keyframe of a window or none")
         maps = [d.heatmaps[k] for k in range(len(d.heatmaps))] + [heatmaps]
         data = Keyframes(d.camera, np.append(d.timestamps, timestamp),
                          _append(d.world_T_cam, measured), HeatmapStack(maps),
@@ -121,7 +127,10 @@ class TrackWindow:
                          None if d.position_sigma is None or position_sigma is None
                          else np.vstack([d.position_sigma,
                                          np.asarray(position_sigma, np.float64).reshape(1, 3)]),
-                         _append_motion(d.motions, motion, len(self)))
+                         _append_motion(d.motions, motion, len(self)),
+                         None if d.photos is None or photo is None
+                         else PhotoStack(np.concatenate([d.photos.images, photo.images]),
+                                         d.photos.scale))
         return TrackWindow(np.append(self.index, index), data,
                            _append(self.world_T_cam, world_T_cam),
                            np.append(self.evidence, evidence))
@@ -134,7 +143,8 @@ class TrackWindow:
                          None if d.odometry is None else d.odometry[1:],
                          None if d.position_sigma is None else d.position_sigma[1:],
                          None if d.motions is None
-                         else d.motions.take(np.arange(1, len(d.motions))))
+                         else d.motions.take(np.arange(1, len(d.motions))),
+                         None if d.photos is None else d.photos.take(np.arange(1, len(d.photos))))
         return TrackWindow(self.index[1:], data, self.world_T_cam[1:], self.evidence[1:])
 
     def with_estimate(self, world_T_cam: SE3) -> TrackWindow:

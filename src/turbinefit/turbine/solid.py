@@ -155,6 +155,35 @@ def blade_twist(u: F32, pitch: float) -> F32:
     return np.float32(pitch) + np.float32(ROOT_TWIST) * twist_fraction(u)
 
 
+
+def blade_silhouette_half_width(solid: TurbineSolid, blade: NDArray[np.int_], u: FloatArray,
+                                across: FloatArray, pitch: float
+                                ) -> tuple[FloatArray, FloatArray]:
+    """Half the width [m] a blade's elliptic section shows across unit directions
+    ``across`` (..., 3) (perpendicular to the blade; the line of sight crossed with the
+    blade's axis): the section's support ``h = sqrt((A chord.n)^2 + (B thick.n)^2)``,
+    with the chord and thickness axes of :func:`solid_mesh` at ``pitch`` [rad]; and
+    ``dh / dpitch`` [m/rad]. ``blade`` (...) is 0, 1 or 2, ``u`` (...) the span fraction."""
+    blade = np.asarray(blade, dtype=np.int64)
+    u = np.asarray(u, dtype=np.float64)
+    n = np.asarray(across, dtype=np.float64)
+    A, B = blade_profile(u.astype(np.float32), solid.b)
+    beta = blade_twist(u.astype(np.float32), pitch).astype(np.float64)
+    e = solid.tips - solid.hub
+    e /= np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
+    c0 = np.stack([solid.chord_axis(i) for i in range(3)])
+    ec0 = np.cross(e, c0)
+    cb, sb = np.cos(beta)[..., None], np.sin(beta)[..., None]
+    chord = cb * c0[blade] + sb * ec0[blade]
+    thick = np.cross(e[blade], chord)
+    a = A.astype(np.float64) * np.sum(chord * n, axis=-1)
+    t = B.astype(np.float64) * np.sum(thick * n, axis=-1)
+    h = np.sqrt(a * a + t * t)
+    # d chord / d beta = thick, d thick / d beta = -chord
+    dh = (A.astype(np.float64) ** 2 - B.astype(np.float64) ** 2) * np.sum(chord * n, -1) \
+        * np.sum(thick * n, -1) / np.maximum(h, 1e-12)
+    return h, dh
+
 @dataclass(frozen=True)
 class SolidPart:
     """One closed part of a :class:`TurbineSolid` as a triangle mesh.
