@@ -30,10 +30,10 @@ the final fit alone: ``--missions 2 --kinds closed --maps ideal|photos --gps-sig
 ``--kinds closed --gps-sigma 5`` and ``--kinds closed,open --fit-gps-sigma 5`` are the
 comparison in ``docs/mission.md``.
 
-``--width-term`` adds the width term to the tracker and the final fit
-(``MissionConfig.width_term``: the camera's distance from a blade from how wide it
-looks); ``--kinds closed,rtk --width-term`` against ``bench_mission.json`` is the
-comparison in ``docs/mission.md``.
+``--width-term on|off`` puts the width term in the tracker and the final fit of every
+mission, or of none (``MissionConfig.width_term``: the camera's distance from a blade
+from how wide it looks; default ``auto``: with standard GNSS, not with RTK); ``--kinds
+closed,rtk --width-term on`` and ``off`` are the comparison in ``docs/mission.md``.
 
 Each mission's defects and located boxes go into the results too (``defect_truth``,
 ``defect_boxes``, ``baseline_boxes``), so that a rule for placing a defect can be scored again without
@@ -64,7 +64,7 @@ KINDS = {"closed": {"closed_loop": True, "gnss": "standard"},
 
 
 def one(seed: int, turbine: str, kind: str, maps: str, gps_sigma: float | None = None,
-        fit_gps_sigma: float | None = None, width_term: bool = False) -> dict[str, Any]:
+        fit_gps_sigma: float | None = None, width_term: bool | None = None) -> dict[str, Any]:
     """One mission's figures (run in a worker)."""
     from turbinefit.mission import MissionConfig, mission_outcome, run_mission
 
@@ -141,7 +141,7 @@ def summarise(rows: list[dict[str, Any]], standoff: float) -> dict[str, Any]:
     return out
 
 
-def timing(maps: str, width_term: bool = False) -> dict[str, Any]:
+def timing(maps: str, width_term: bool | None = None) -> dict[str, Any]:
     """One closed mission alone: the tracker's update time and the fit of its photos."""
     row = one(100, "nrel5mw", "closed", maps, width_term=width_term)
     return {"photos": row["photos"], "update_ms_median": row["update_ms_median"],
@@ -160,17 +160,18 @@ def main() -> None:
                     "a standard deviation [m] (default: the GNSS model's 1.5 m)")
     ap.add_argument("--fit-gps-sigma", type=float, default=None, metavar="M",
                     help="the same for the final fit of each mission's photos alone")
-    ap.add_argument("--width-term", action="store_true",
+    ap.add_argument("--width-term", choices=("auto", "on", "off"), default="auto",
                     help="the width term in the tracker and the final fit "
-                    "(MissionConfig.width_term)")
+                    "(MissionConfig.width_term; auto: with standard GNSS, not with RTK)")
     ap.add_argument("--timing", action="store_true", help="also time one mission alone")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "bench_mission.json")
     ap.add_argument("--resume", action="store_true",
                     help="keep the missions of an interrupted run (OUT.partial.json)")
     args = ap.parse_args()
     types = args.types.split(",")
+    width_term = None if args.width_term == "auto" else args.width_term == "on"
     jobs = [(s, types[s % len(types)], k, args.maps, args.gps_sigma, args.fit_gps_sigma,
-             args.width_term) for s in range(args.missions) for k in args.kinds.split(",")]
+             width_term) for s in range(args.missions) for k in args.kinds.split(",")]
     rows: list[dict[str, Any]] = []
     partial = args.out.with_suffix(".partial.json")
     if args.resume and partial.exists():
@@ -202,7 +203,7 @@ def main() -> None:
                               "summary": summarise(rows, 10.0), "missions": rows}
     os.environ.pop("OMP_NUM_THREADS", None)
     if args.timing:
-        result["timing"] = timing(args.maps, args.width_term)
+        result["timing"] = timing(args.maps, width_term)
     args.out.parent.mkdir(exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1, default=float) + "\n")
     partial.unlink(missing_ok=True)

@@ -71,7 +71,7 @@ def test_a_short_mission_closes_the_loop(tmp_path: Path, capsys: pytest.CaptureF
     out = tmp_path / "mission"
     assert main(["mission", str(out), "--camera", str(cam), "--gsd", "5", "--maps", "ideal",
                  "--defects", "6", "--max-photos", "18", "--seed", "3", "--no-plots",
-                 "--width-term"]) == 0
+                 "--width-term", "on"]) == 0
     text = capsys.readouterr().out
     assert "mission closed loop, 24 approach + 18 inspection photos" in text
     s = json.loads((out / "mission.json").read_text())
@@ -80,7 +80,8 @@ def test_a_short_mission_closes_the_loop(tmp_path: Path, capsys: pytest.CaptureF
     flight = read_flight_folder(out / "flight")
     assert flight.num_keyframes == 42 and flight.odometry is not None
     assert (out / "fit" / "turbine.yaml").is_file() and (out / "coverage" / "sides.csv").is_file()
-    # the width term (--width-term): the fit of the flight folder read its photos
+    # the width term (--width-term on; auto: with standard GNSS): the fit of the
+    # flight folder read its photos
     assert s["config"]["width_term"] is True
     fit_summary = json.loads((out / "fit" / "summary.json").read_text())
     assert fit_summary["solver"]["final_terms"].get("width", 0.0) > 0.0

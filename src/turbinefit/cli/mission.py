@@ -68,10 +68,10 @@ def add_parser(sub: Any, help: str) -> argparse.ArgumentParser:
                    metavar="DEG", help="the gimbal's largest upward pitch [deg]")
     p.add_argument("--max-photos", type=job_option("mission", "MAX_PHOTOS"), default=None,
                    metavar="N", help="end after this many inspection photos (a short mission)")
-    p.add_argument("--width-term", action="store_true",
-                   help="add the width term to the tracker and the final fit: the camera's "
-                   "distance from a blade measured from how wide it looks in the photo "
-                   "(experimental: see docs/mission.md)")
+    p.add_argument("--width-term", choices=("auto", "on", "off"), default="auto",
+                   help="the width term in the tracker and the final fit: the camera's "
+                   "distance from a blade measured from how wide it looks in the photo; "
+                   "auto: with standard GNSS, not with RTK (docs/mission.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--overwrite", action="store_true",
                    help="replace OUT_DIR if it holds nothing but a mission's outputs")
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         photo_width=min(int(args.photo_width), camera.width),
         max_gimbal_up_deg=args.max_gimbal_up,
         max_photos=int(args.max_photos) if args.max_photos is not None else 100_000,
-        width_term=args.width_term)
+        width_term=None if args.width_term == "auto" else args.width_term == "on")
 
     bar = None
     if not args.quiet:
