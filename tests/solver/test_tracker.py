@@ -288,3 +288,16 @@ def test_tracking_an_odometry_flight_with_the_defaults() -> None:
     a = accuracy(tr.world_T_cam(), tr.turbine, f.gt_world_T_cam, f.gt_turbine)
     assert a.position_error_m < 0.4 and a.orientation_error_deg < 0.3
     assert a.model_point_error_m < 0.3
+
+
+def test_a_refused_keyframe_leaves_the_maps_storage_undecided() -> None:
+    """A first keyframe of float16 maps refused for its photo decides nothing: the next
+    one, of float32 maps, is kept as float32."""
+    flight = simulated_flight(2, seed=8)
+    tr = Tracker(flight.camera, flight.turbine)
+    t, pose = float(flight.timestamps[0]), flight.world_T_cam[0]
+    with pytest.raises(KeyframeError, match="photo"):
+        tr.update(t, pose, np.asarray(flight.heatmaps[0], dtype=np.float16),
+                  photo=np.zeros((3, 5), np.uint8))
+    tr.update(t, pose, np.asarray(flight.heatmaps[0], dtype=np.float32))
+    assert tr._window is not None and not tr._window.data.heatmaps.half

@@ -359,13 +359,6 @@ class Tracker:
         return SE3(np.stack([e.world_T_cam.wxyz_xyz for e in self.estimates]))
 
     # ------------------------------------------------------------------------------
-    def _check(self, timestamp: float, world_T_cam: SE3, heatmaps: NDArray[np.floating],
-               odometry: SE3 | None) -> NDArray[np.floating]:
-        maps, self._map_dtype = check_keyframe(
-            len(self._times), timestamp, self._times[-1] if self._times else None,
-            world_T_cam, heatmaps, odometry, self._has_odometry, self.camera, self._map_dtype)
-        return maps
-
     def _fixed(self) -> NDArray[np.bool_]:
         assert self._window is not None
         fixed = np.zeros(len(self._window), dtype=bool)
@@ -447,16 +440,20 @@ class Tracker:
                 (nothing is changed).
         """
         t0 = time.perf_counter()
-        maps = self._check(float(timestamp), world_T_cam, heatmaps, odometry)
-        sigma = check_position_sigma(len(self._times), position_sigma, self._window)
-        motion = check_motion(len(self._times), motion)
-        photos = check_photo(len(self._times), photo, self._window, self.camera)
+        k = len(self._times)
+        maps, dtype = check_keyframe(
+            k, float(timestamp), self._times[-1] if self._times else None, world_T_cam,
+            heatmaps, odometry, self._has_odometry, self.camera, self._map_dtype)
+        sigma = check_position_sigma(k, position_sigma, self._window)
+        motion = check_motion(k, motion)
+        photos = check_photo(k, photo, self._window, self.camera)
+        self._map_dtype = dtype  # every input checked: the keyframe is taken
         if self._has_odometry is None:  # the first keyframe resolves pair_frame="auto"
             self._has_odometry = odometry is not None
             self.config = dataclasses.replace(
                 self.config, fit=resolve_pair_frame(self.config.fit, self._has_odometry))
             self._set_costs()
-        index = len(self._times)
+        index = k
         self._times.append(float(timestamp))
         self._final.append(None)
         evidence = float(maps.max()) >= self.config.fit.corr_threshold
