@@ -220,7 +220,7 @@ def fit_folder(
             init = estimate_turbine(stack, source.camera, folder.keyframes.poses,
                                     where=flight_dir, gt_turbine=folder.gt_turbine)
         flight = folder.flight(stack, source.camera, None if init is None else init.turbine)
-        if (cfg.lambda_edges > 0 or cfg.lambda_width > 0) and cfg.lines == "corr":
+        if cfg.uses_photos:
             flight = dataclasses.replace(flight, photos=photo_stack(
                 flight_dir, flight.timestamps, flight.camera))
         timings["load"] = time.perf_counter() - t0

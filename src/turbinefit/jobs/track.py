@@ -267,8 +267,7 @@ def track_folder(
     tracker = Tracker(source.camera, initial_turbine, cfg)
     odometry = folder.odometry  # its steps are the pairwise measurements, if present
     photos = (grey_photos(flight_dir, folder.timestamps, source.camera)
-              if (fit_cfg.lambda_edges > 0 or fit_cfg.lambda_width > 0)
-              and fit_cfg.lines == "corr" else None)
+              if fit_cfg.uses_photos else None)
     latency = np.empty(n)
     image: list[ImageEvidence] = []
     for k in range(n):

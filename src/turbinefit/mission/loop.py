@@ -463,8 +463,7 @@ def _update(tracker: Tracker, kf: Keyframe, rtk: bool) -> TrackEstimate:
     RTK)."""
     return tracker.update(kf.timestamp, kf.recorded, kf.heatmaps, odometry=kf.odometry,
                           position_sigma=kf.position_sigma if rtk else None,
-                          photo=grey_photo(kf) if tracker.config.fit.lambda_width > 0
-                          or tracker.config.fit.lambda_edges > 0 else None)
+                          photo=grey_photo(kf) if tracker.config.fit.uses_photos else None)
 
 
 def grey_photo(kf: Keyframe) -> NDArray[np.uint8] | None:

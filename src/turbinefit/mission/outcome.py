@@ -115,6 +115,7 @@ def final_fit(mission: Mission) -> FitResult:
     options), started from :func:`final_start`, as ``turbinefit fit`` of the flight does."""
     kfs = mission.keyframes
     rtk = mission.config.gnss == "rtk"
+    config = mission.config.final_fit_config(mission.known_pitch)
     flight = Flight(camera=mission.config.map_camera(),
                     timestamps=np.array([k.timestamp for k in kfs]),
                     world_T_cam=_poses(kfs, "recorded"),
@@ -123,10 +124,10 @@ def final_fit(mission: Mission) -> FitResult:
                     odometry=_poses(kfs, "odometry") if kfs[0].odometry is not None else None,
                     gt_world_T_cam=_poses(kfs, "true"), gt_turbine=mission.truth,
                     position_sigma=np.stack([k.position_sigma for k in kfs]) if rtk else None,
-                    photos=_photos(kfs, mission.config.map_camera().width))
+                    photos=_photos(kfs, mission.config.map_camera().width)
+                    if config.uses_photos else None)
     poses, turbine = final_start(mission)
-    return fit(flight, mission.config.final_fit_config(mission.known_pitch),
-               initial_poses=poses, initial_turbine=turbine)
+    return fit(flight, config, initial_poses=poses, initial_turbine=turbine)
 
 
 def _photos(kfs: list[Keyframe], map_width: int) -> PhotoStack | None:

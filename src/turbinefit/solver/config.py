@@ -254,6 +254,12 @@ class FitConfig:
                 raise bad("pair_information", "must be 36 finite numbers")
 
     @property
+    def uses_photos(self) -> bool:
+        """Whether a term reads the keyframes' grey photos: the edge or the width term,
+        with lines=corr."""
+        return (self.lambda_edges > 0 or self.lambda_width > 0) and self.lines == "corr"
+
+    @property
     def scale(self) -> float:
         """The resolved ``pixel_scale`` (1 while it is unset: see
         :func:`resolve_pixel_scale`)."""

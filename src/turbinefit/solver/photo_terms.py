@@ -30,7 +30,7 @@ from turbinefit.costs.silhouette_width import WidthDepths, measure_depths
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
 from turbinefit.solver.config import FitConfig
-from turbinefit.turbine.model import LINES, LineSampling, model_points
+from turbinefit.turbine.model import LINES, LineSampling
 from turbinefit.turbine.solid import TurbineSolid, blade_profile, blade_silhouette_half_width
 
 FloatArray = NDArray[np.float64]
@@ -56,7 +56,8 @@ def sample_depths(world_T_cam: SE3, points: FloatArray) -> FloatArray:
 def silhouette_correspondences(
     config: FitConfig, camera: PinholeCamera, photos: PhotoStack,
     keyframes: NDArray[np.int_], poses: SE3, theta: FloatArray, S: FloatArray,
-    fractions: FloatArray | None, line_index: NDArray[np.int_], centre: FloatArray,
+    line_dirs: FloatArray, fractions: FloatArray | None, line_index: NDArray[np.int_],
+    centre: FloatArray,
     found: NDArray[np.bool_], normal: FloatArray,
 ) -> tuple[FloatArray, NDArray[np.bool_], WidthDepths | None]:
     """The edge term's correspondences of N keyframes' M line samples (module docstring):
@@ -68,8 +69,9 @@ def silhouette_correspondences(
         camera: the heat-maps' camera; photos: the keyframes' grey photos (indexed by
             ``keyframes``).
         poses: (N,) the current poses; theta: the current turbine.
-        S: (M, 3) or (N, M, 3) the line samples' world points; fractions: (N, 5, n) where
-            each keyframe samples each line, or None (uniform).
+        S: (M, 3) or (N, M, 3) the line samples' world points; line_dirs: (M, 3) the
+            unit direction of each one's line; fractions: (N, 5, n) where each keyframe
+            samples each line, or None (uniform).
         line_index: (M,) the line of each sample.
         centre, found, normal: the net's line correspondences (N, M, 2), which were found
             (N, M), and the normals they were searched along (N, M, 2).
@@ -93,7 +95,7 @@ def silhouette_correspondences(
     widths = None
     if config.lambda_width > 0:
         # the search keeps the part's whole range of widths (module docstring)
-        widths = silhouette_half_widths(config, solid, poses, theta, S,
+        widths = silhouette_half_widths(config, solid, poses, S, line_dirs,
                                         f.reshape(N, -1), line_index)
     target, edge_found, sep = find_edge_correspondences(
         photos, keyframes, centre, normal, usable, half_width * px_per_m[..., None],
@@ -105,21 +107,18 @@ def silhouette_correspondences(
 
 
 def silhouette_half_widths(config: FitConfig, solid: TurbineSolid, poses: SE3,
-                           theta: FloatArray, S: FloatArray, fractions: FloatArray,
+                           S: FloatArray, line_dirs: FloatArray, fractions: FloatArray,
                            line_index: NDArray[np.int_]
                            ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Per keyframe and line sample (N, M): the half-width [m] its part shows across the
     line of sight (NaN where not known: the nacelle, and the blades without
     ``blade_pitch_deg``), its relative uncertainty from the pitch's, and the unit world
     direction (N, M, 3) across the line and the line of sight it is measured along.
-    ``fractions`` (N, M): where each sample lies along its line."""
+    ``line_dirs`` (M, 3): each sample's line's unit direction; ``fractions`` (N, M): where
+    each sample lies along its line."""
     N = len(poses)
-    P, _ = model_points(theta, config.geometry, False)
-    ends = np.array([[ln[0], ln[1]] for ln in LINES])
-    d = P[ends[:, 1]] - P[ends[:, 0]]
-    d /= np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
     Sn = np.broadcast_to(S, (N, *S.shape[-2:]))
-    across = np.cross(np.broadcast_to(d[line_index], Sn.shape), Sn - poses.translation[:, None])
+    across = np.cross(np.broadcast_to(line_dirs, Sn.shape), Sn - poses.translation[:, None])
     across /= np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-12)
     line = np.broadcast_to(line_index, fractions.shape)
     h = np.full(fractions.shape, np.nan)

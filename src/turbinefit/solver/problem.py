@@ -268,9 +268,8 @@ class FitProblem:
         #: the flight's photos for the edge term (indexed by ``keyframes``), or None
         photos = getattr(data, "photos", None)
         self.photos: PhotoStack | None = (
-            photos if (config.lambda_edges > 0 or config.lambda_width > 0)
-            and config.lines == "corr"
-            and photos is not None and photos.scale >= MIN_EDGE_SCALE else None)
+            photos if config.uses_photos and photos is not None
+            and photos.scale >= MIN_EDGE_SCALE else None)
         n = config.samples_per_line
         self._line_channels = np.repeat(np.array([ln[2] for ln in LINES]), n)
         self._line_index = np.repeat(np.arange(len(LINES)), n)
@@ -355,8 +354,9 @@ class FitProblem:
                 self.data.heatmaps, self.keyframes, POINT_CHANNELS, pr.uv, pr.inside,
                 cfg.px("corr_radius"), cfg.corr_threshold, self.search_step)
         if cfg.lines == "corr":
+            dirs = self._line_dirs(P)
             pr = project_points(cam, poses, S, None, with_jacobian=False)
-            pr2 = project_points(cam, poses, S + self._line_dirs(P), None, with_jacobian=False)
+            pr2 = project_points(cam, poses, S + dirs, None, with_jacobian=False)
             tangent = pr2.uv - pr.uv
             norm = np.linalg.norm(tangent, axis=-1, keepdims=True)
             usable = pr.inside & pr2.front & (norm[..., 0] > 1e-6)
@@ -368,7 +368,7 @@ class FitProblem:
                 usable, cfg.px("line_search"), cfg.corr_threshold, self.search_step)
             if self.photos is not None:
                 out.edge_target, out.edge_found, out.width = silhouette_correspondences(
-                    cfg, cam, self.photos, self.keyframes, poses, theta, S,
+                    cfg, cam, self.photos, self.keyframes, poses, theta, S, dirs,
                     out.line_fractions, self._line_index, out.line_target, out.line_found,
                     normal)
         return out

@@ -165,24 +165,32 @@ def blade_silhouette_half_width(solid: TurbineSolid, blade: NDArray[np.int_], u:
     with the chord and thickness axes of :func:`solid_mesh` at ``pitch`` [rad]; and
     ``dh / dpitch`` [m/rad]. ``blade`` (...) is 0, 1 or 2, ``u`` (...) the span fraction."""
     blade = np.asarray(blade, dtype=np.int64)
-    u = np.asarray(u, dtype=np.float64)
+    u32 = np.asarray(u, dtype=np.float32)
     n = np.asarray(across, dtype=np.float64)
-    A, B = blade_profile(u.astype(np.float32), solid.b)
-    beta = blade_twist(u.astype(np.float32), pitch).astype(np.float64)
+    A32, B32 = blade_profile(u32, solid.b)
+    A, B = A32.astype(np.float64), B32.astype(np.float64)
     e = solid.tips - solid.hub
     e /= np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
     c0 = np.stack([solid.chord_axis(i) for i in range(3)])
-    ec0 = np.cross(e, c0)
-    cb, sb = np.cos(beta)[..., None], np.sin(beta)[..., None]
-    chord = cb * c0[blade] + sb * ec0[blade]
-    thick = np.cross(e[blade], chord)
-    a = A.astype(np.float64) * np.sum(chord * n, axis=-1)
-    t = B.astype(np.float64) * np.sum(thick * n, axis=-1)
-    h = np.sqrt(a * a + t * t)
+    chord, thick = section_axes(e[blade], c0[blade],
+                                blade_twist(u32, pitch).astype(np.float64))
+    cn = np.sum(chord * n, axis=-1)
+    tn = np.sum(thick * n, axis=-1)
+    h = np.sqrt((A * cn) ** 2 + (B * tn) ** 2)
     # d chord / d beta = thick, d thick / d beta = -chord
-    dh = (A.astype(np.float64) ** 2 - B.astype(np.float64) ** 2) * np.sum(chord * n, -1) \
-        * np.sum(thick * n, -1) / np.maximum(h, 1e-12)
+    dh = (A * A - B * B) * cn * tn / np.maximum(h, 1e-12)
     return h, dh
+
+
+def section_axes(e: FloatArray, c0: FloatArray, beta: FloatArray
+                 ) -> tuple[FloatArray, FloatArray]:
+    """Unit chord and thickness axes (..., 3) of a blade section of unit axis ``e``
+    whose chord at zero pitch and twist is ``c0`` (:meth:`TurbineSolid.chord_axis`),
+    turned by ``beta`` (...) [rad] (:func:`blade_twist`) towards ``e x c0``; ``chord x
+    thick = e``."""
+    cb, sb = np.cos(beta)[..., None], np.sin(beta)[..., None]
+    chord = cb * c0 + sb * np.cross(e, c0)
+    return chord, np.cross(e, chord)
 
 @dataclass(frozen=True)
 class SolidPart:
@@ -240,12 +248,10 @@ def solid_mesh(solid: TurbineSolid, blade_pitch: float = 0.0,
                                                        math.ceil(1.3 * solid.b / ring_step) + 1)
     u = (1.0 - (1.0 - np.linspace(0.0, 1.0, rings)) ** 1.3).astype(np.float32)
     half_chord, half_thick = blade_profile(u, solid.b)
-    beta = blade_twist(u, blade_pitch).astype(np.float64)[:, None]
+    beta = blade_twist(u, blade_pitch).astype(np.float64)
     for i, tip in enumerate(solid.tips):
         e = unit_vector(tip - solid.hub)
-        c0 = solid.chord_axis(i)
-        chord = np.cos(beta) * c0 + np.sin(beta) * np.cross(e, c0)
-        thick = np.cross(e, chord)  # chord x thick = e: faces outward
+        chord, thick = section_axes(e, solid.chord_axis(i), beta)  # faces outward
         cent = solid.hub + u.astype(np.float64)[:, None] * (tip - solid.hub)
         parts.append(SolidPart(f"blade_{i + 1}", *_closed_tube(
             cent, chord, thick, half_chord.astype(np.float64), half_thick.astype(np.float64),
