@@ -16,18 +16,18 @@ from turbinefit.solver.fit import fit as fit
 if TYPE_CHECKING:
     from turbinefit.solver.config import PRESETS as PRESETS
     from turbinefit.solver.config import FitConfig as FitConfig
+    from turbinefit.solver.config import TrackerConfig as TrackerConfig
     from turbinefit.solver.fit import FitResult as FitResult
     from turbinefit.solver.problem import FitProblem as FitProblem
     from turbinefit.solver.tracker import TrackAssessment as TrackAssessment
     from turbinefit.solver.tracker import Tracker as Tracker
-    from turbinefit.solver.tracker import TrackerConfig as TrackerConfig
     from turbinefit.solver.tracker import TrackEstimate as TrackEstimate
 
 _WHERE = {
     "PRESETS": "turbinefit.solver.config", "FitConfig": "turbinefit.solver.config",
     "FitResult": "turbinefit.solver.fit",
     "FitProblem": "turbinefit.solver.problem",
-    "Tracker": "turbinefit.solver.tracker", "TrackerConfig": "turbinefit.solver.tracker",
+    "Tracker": "turbinefit.solver.tracker", "TrackerConfig": "turbinefit.solver.config",
     "TrackEstimate": "turbinefit.solver.tracker", "TrackAssessment": "turbinefit.solver.tracker",
 }
 

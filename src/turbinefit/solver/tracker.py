@@ -56,8 +56,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,7 +64,9 @@ from numpy.typing import NDArray
 from turbinefit.costs.relative_motion import RelativeMotions
 from turbinefit.geometry.camera import PinholeCamera
 from turbinefit.geometry.se3 import SE3
+from turbinefit.solver.config import DEFAULT_THETA_SIGMA as DEFAULT_THETA_SIGMA  # re-exported
 from turbinefit.solver.config import FitConfig, resolve_pair_frame, resolve_pixel_scale
+from turbinefit.solver.config import TrackerConfig as TrackerConfig  # re-exported
 from turbinefit.solver.fit import match_config
 from turbinefit.solver.keyframe_input import KeyframeError as KeyframeError  # update raises it
 from turbinefit.solver.keyframe_input import (
@@ -96,81 +97,6 @@ from turbinefit.solver.window import TrackWindow
 from turbinefit.turbine.model import TurbineParams
 
 FloatArray = NDArray[np.float64]
-
-#: Default standard deviations of the start-up prior on theta: base x, base y, tower
-#: height [m], heading [rad], nacelle length [m], blade rotation [rad], blade length [m]
-#: (twice the simulator's initial turbine errors).
-DEFAULT_THETA_SIGMA: tuple[float, ...] = (
-    2.0, 2.0, 4.0, math.radians(10.0), 1.0, math.radians(10.0), 4.0)
-
-
-@dataclass(frozen=True)
-class TrackerConfig:
-    """How the tracker updates. Units as named.
-
-    Attributes:
-        fit: the cost and its options (as for the batch fit; warm-up options other than
-            ``warmup_pixel_sigma`` are not used).
-        window: keyframes in the sliding window (>= 2), or None: keep all (the batch
-            problem; per-keyframe work then grows with the flight).
-        rounds: correspondence rounds of the configured cost per keyframe.
-        iterations: Levenberg-Marquardt iterations per round.
-        match_rounds: wide-basin correspondence rounds before them (the batch fit's
-            *match* warm-up, with ``fit.warmup_iterations`` iterations) on the first
-            ``match_keyframes`` keyframes and whenever the turbine comes back into view.
-        match_keyframes: see ``match_rounds``.
-        theta_sigma: standard deviations of the start-up prior on theta (7 values, see
-            :data:`DEFAULT_THETA_SIGMA`), or None: no prior (theta is then unobservable
-            from the first keyframe alone; use with care).
-        marginal_terms: how the image terms of a keyframe leaving the window are linearised
-            into the prior: ``corr``, as correspondences (points as found by the window
-            search, lines along the search normal), whose quadratic model holds over the
-            whole search range; or ``same``, as the configured cost, whose interp terms are
-            quadratic only within about a pixel of the heat-map's ridge, so that the prior
-            of a keyframe marginalised while theta was still off carries a wrong model of
-            it (measured: see docs/tracking.md).
-        theta_prior_release: the start-up prior is removed once the images alone inform
-            every direction of theta this many times more than it does (the smallest
-            generalised eigenvalue of data and prior information); None: keep it.
-        finish_rounds, finish_iterations: rounds and iterations of :meth:`Tracker.finish`.
-    """
-
-    fit: FitConfig = field(default_factory=FitConfig)
-    window: int | None = 20
-    rounds: int = 1
-    iterations: int = 5
-    match_rounds: int = 1
-    match_keyframes: int = 5
-    theta_sigma: tuple[float, ...] | None = DEFAULT_THETA_SIGMA
-    theta_prior_release: float | None = 10.0
-    marginal_terms: Literal["corr", "same"] = "corr"
-    finish_rounds: int = 3
-    finish_iterations: int = 15
-
-    def __post_init__(self) -> None:
-        if self.fit.mode not in ("joint", "pose"):
-            raise ValueError(f"mode: tracking needs joint or pose (got {self.fit.mode!r})")
-        if self.window is not None and (isinstance(self.window, bool)
-                                        or not isinstance(self.window, int) or self.window < 2):
-            raise ValueError(f"window: must be a whole number >= 2 or None (got {self.window!r})")
-        for name in ("rounds", "iterations", "finish_rounds", "finish_iterations"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: must be a whole number >= 1 (got {v!r})")
-        for name in ("match_rounds", "match_keyframes"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"{name}: must be a whole number >= 0 (got {v!r})")
-        if self.marginal_terms not in ("corr", "same"):
-            raise ValueError(f"marginal_terms: must be corr or same (got {self.marginal_terms!r})")
-        r = self.theta_prior_release
-        if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
-            raise ValueError(f"theta_prior_release: must be a positive number or None (got {r!r})")
-        if self.theta_sigma is not None and (
-                len(self.theta_sigma) != 7
-                or not all(math.isfinite(s) and s > 0 for s in self.theta_sigma)):
-            raise ValueError("theta_sigma: needs 7 positive finite standard deviations")
-
 
 @dataclass(frozen=True)
 class TrackEstimate:
